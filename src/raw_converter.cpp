@@ -1,0 +1,374 @@
+#include "raw_converter.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/tools/Prune.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <sys/resource.h>
+#include <unistd.h>
+#include <vector>
+
+namespace vdb_isosimp {
+
+namespace {
+
+using FloatTree = openvdb::FloatTree;
+using LeafT = FloatTree::LeafNodeType;
+constexpr int kLeafDim = LeafT::DIM;  // 8
+
+/// How values become grid values and what counts as background.
+struct ValueRules {
+    bool scaled = false;
+    double scale = 1, intercept = 0;
+    bool clamped = false;
+    double lo = 0, hi = 0;
+    float background = 0;
+    double tolerance = 0;
+    bool levelSet = false;
+};
+
+template <typename T, bool Swap>
+inline T loadValue(const unsigned char* p)
+{
+    if constexpr (sizeof(T) == 1) {
+        T v;
+        std::memcpy(&v, p, 1);
+        return v;
+    } else {
+        unsigned char b[sizeof(T)];
+        std::memcpy(b, p, sizeof(T));
+        if constexpr (Swap) std::reverse(b, b + sizeof(T));
+        T v;
+        std::memcpy(&v, b, sizeof(T));
+        return v;
+    }
+}
+
+enum class LeafKind { Empty, ActiveTile, InactiveTile, Leaf };
+
+struct LeafResult {
+    LeafKind kind = LeafKind::Empty;
+    float value = 0;
+    std::unique_ptr<LeafT> leaf;
+};
+
+struct SlabGeometry {
+    uint64_t X, Y;
+    int z0;       // first z of the slab
+    int nz;       // z rows in the slab (8 except maybe the last)
+    int leavesX;  // ceil(X/8)
+};
+
+/// Converts the voxels of one 8x8x8 block of a slab.
+template <typename T, bool Swap>
+void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int by, const ValueRules& r, LeafResult& out)
+{
+    const int x0 = bx * kLeafDim, y0 = by * kLeafDim;
+    const int nx = static_cast<int>(std::min<uint64_t>(kLeafDim, g.X - static_cast<uint64_t>(x0)));
+    const int ny = static_cast<int>(std::min<uint64_t>(kLeafDim, g.Y - static_cast<uint64_t>(y0)));
+    const bool whole = nx == kLeafDim && ny == kLeafDim && g.nz == kLeafDim;
+
+    float vals[LeafT::SIZE];
+    float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
+    bool hasNaN = false;
+    int nearBg = 0, inside = 0;  // fog: |v-bg|<=tol ; level set: outside (>= bg-tol) / inside (<= -bg+tol)
+    const double bg = r.background, tol = r.tolerance;
+    for (int z = 0; z < g.nz; ++z) {
+        for (int y = 0; y < ny; ++y) {
+            const unsigned char* row = slab + ((static_cast<uint64_t>(z) * g.Y + static_cast<uint64_t>(y0 + y)) * g.X + static_cast<uint64_t>(x0)) * sizeof(T);
+            for (int x = 0; x < nx; ++x) {
+                double d = static_cast<double>(loadValue<T, Swap>(row + x * sizeof(T)));
+                if (r.scaled) d = d * r.scale + r.intercept;
+                if (r.clamped) d = std::min(std::max(d, r.lo), r.hi);
+                const float v = static_cast<float>(d);
+                vals[(x << 6) | (y << 3) | z] = v;
+                if (v != v) { hasNaN = true; continue; }
+                vmin = std::min(vmin, v);
+                vmax = std::max(vmax, v);
+                if (!r.levelSet) {
+                    nearBg += std::fabs(static_cast<double>(v) - bg) <= tol;
+                } else {
+                    nearBg += static_cast<double>(v) >= bg - tol;
+                    inside += static_cast<double>(v) <= -bg + tol;
+                }
+            }
+        }
+    }
+    const int count = nx * ny * g.nz;
+    if (!hasNaN) {
+        if (nearBg == count) { out.kind = LeafKind::Empty; return; }
+        if (whole && inside == count) { out.kind = LeafKind::InactiveTile; out.value = -r.background; return; }
+        if (whole && static_cast<double>(vmax) - static_cast<double>(vmin) <= 2 * tol && nearBg == 0 && inside == 0) {
+            out.kind = LeafKind::ActiveTile;
+            out.value = tol == 0 ? vmin : static_cast<float>(0.5 * (static_cast<double>(vmin) + static_cast<double>(vmax)));
+            return;
+        }
+    }
+    out.kind = LeafKind::Leaf;
+    out.leaf = std::make_unique<LeafT>(openvdb::Coord(x0, y0, g.z0), r.background, false);
+    float* data = out.leaf->buffer().data();
+    auto& mask = out.leaf->getValueMask();
+    for (int x = 0; x < nx; ++x) {
+        for (int y = 0; y < ny; ++y) {
+            const int base = (x << 6) | (y << 3);
+            for (int z = 0; z < g.nz; ++z) {
+                const float v = vals[base | z];
+                const double d = v;
+                bool active;
+                float stored = v;
+                if (!r.levelSet) {
+                    active = !(std::fabs(d - bg) <= tol);
+                    if (!active) stored = r.background;
+                } else if (d >= bg - tol) {
+                    active = false;
+                    stored = r.background;
+                } else if (d <= -bg + tol) {
+                    active = false;
+                    stored = -r.background;
+                } else {
+                    active = true;
+                }
+                data[base | z] = stored;
+                if (active) mask.setOn(static_cast<openvdb::Index>(base | z));
+            }
+        }
+    }
+}
+
+using LeafFn = void (*)(const unsigned char*, const SlabGeometry&, int, int, const ValueRules&, LeafResult&);
+
+template <typename T>
+LeafFn pickFn(bool swap)
+{
+    return swap ? &convertLeaf<T, true> : &convertLeaf<T, false>;
+}
+
+LeafFn leafFunction(ScalarType t, bool swap)
+{
+    switch (t) {
+    case ScalarType::U8: return pickFn<uint8_t>(swap);
+    case ScalarType::I8: return pickFn<int8_t>(swap);
+    case ScalarType::U16: return pickFn<uint16_t>(swap);
+    case ScalarType::I16: return pickFn<int16_t>(swap);
+    case ScalarType::U32: return pickFn<uint32_t>(swap);
+    case ScalarType::I32: return pickFn<int32_t>(swap);
+    case ScalarType::F32: return pickFn<float>(swap);
+    case ScalarType::F64: return pickFn<double>(swap);
+    }
+    return nullptr;
+}
+
+/// Removes a file on scope exit unless released.
+struct TempFileGuard {
+    std::string path;
+    bool armed = true;
+    ~TempFileGuard()
+    {
+        if (armed && !path.empty()) std::remove(path.c_str());
+    }
+};
+
+} // namespace
+
+uint64_t peakRssBytes()
+{
+    struct rusage ru {};
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
+    return static_cast<uint64_t>(ru.ru_maxrss) * 1024u;  // Linux: kilobytes
+}
+
+RawVolumeInfo resolveVolumeInfo(const std::string& input, const RawConvertOptions& options)
+{
+    RawVolumeInfo info = readVolumeInfo(input, options.layout);
+    if (options.spacing) {
+        for (int i = 0; i < 3; ++i)
+            if (!((*options.spacing)[i] > 0) || !std::isfinite((*options.spacing)[i]))
+                throw RawInputError(input, "invalid --spacing: every value must be positive");
+        info.spacing = *options.spacing;
+    }
+    if (options.origin) {
+        for (int i = 0; i < 3; ++i)
+            if (!std::isfinite((*options.origin)[i])) throw RawInputError(input, "invalid --origin: not finite");
+        info.origin = *options.origin;
+    }
+    return info;
+}
+
+openvdb::math::Transform::Ptr makeTransform(const RawVolumeInfo& info)
+{
+    // OpenVDB multiplies row vectors: world = [i j k 1] * M.
+    openvdb::math::Mat4d m = openvdb::math::Mat4d::identity();
+    for (int axis = 0; axis < 3; ++axis)
+        for (int w = 0; w < 3; ++w) m[axis][w] = info.direction[w][axis] * info.spacing[axis];
+    for (int w = 0; w < 3; ++w) m[3][w] = info.origin[w];
+    return openvdb::math::Transform::createLinearTransform(m);
+}
+
+openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvertOptions& options, RawConvertStats* stats)
+{
+    openvdb::initialize();
+    const auto start = std::chrono::steady_clock::now();
+    const RawVolumeInfo info = resolveVolumeInfo(input, options);
+
+    ValueRules rules;
+    rules.levelSet = options.gridClass == RawGridClass::LevelSet;
+    if (info.scale != 1.0 || info.intercept != 0.0) {
+        rules.scaled = true;
+        rules.scale = info.scale;
+        rules.intercept = info.intercept;
+    }
+    if (options.clamp) {
+        rules.clamped = true;
+        rules.lo = (*options.clamp)[0];
+        rules.hi = (*options.clamp)[1];
+        if (!(rules.lo <= rules.hi)) throw RawInputError(input, "invalid --clamp: LO must not exceed HI");
+    }
+    if (!(options.tolerance >= 0) || !std::isfinite(options.tolerance)) throw RawInputError(input, "invalid --tolerance: must be >= 0");
+    rules.tolerance = options.tolerance;
+    double background = 0;
+    if (options.background) background = *options.background;
+    else if (rules.levelSet) background = 3.0 * std::min({info.spacing[0], info.spacing[1], info.spacing[2]});
+    if (!std::isfinite(background)) throw RawInputError(input, "invalid --background: not finite");
+    if (rules.levelSet && !(background > 0)) throw RawInputError(input, "invalid --background for a level set: must be positive");
+    rules.background = static_cast<float>(background);
+
+    auto grid = openvdb::FloatGrid::create(rules.background);
+    grid->setTransform(makeTransform(info));
+    grid->setName(!options.name.empty() ? options.name : (rules.levelSet ? "surface" : "density"));
+    grid->setGridClass(rules.levelSet ? openvdb::GRID_LEVEL_SET : openvdb::GRID_FOG_VOLUME);
+    FloatTree& tree = grid->tree();
+
+    const std::size_t vsize = scalarSize(info.type);
+    const uint64_t X = info.dims[0], Y = info.dims[1], Z = info.dims[2];
+    const uint64_t slabCount = (Z + kLeafDim - 1) / kLeafDim;
+    const int leavesX = static_cast<int>((X + kLeafDim - 1) / kLeafDim);
+    const int leavesY = static_cast<int>((Y + kLeafDim - 1) / kLeafDim);
+    const std::size_t leavesPerSlab = static_cast<std::size_t>(leavesX) * static_cast<std::size_t>(leavesY);
+    const LeafFn leafFn = leafFunction(info.type, vsize > 1 && info.byteOrder != hostByteOrder());
+
+    DataStream stream(info.dataFile, info.fileOffset, info.encoding, info.decodedSkip + info.dataBytes());
+    stream.skip(info.decodedSkip);
+
+    const std::size_t tokens = static_cast<std::size_t>(std::max(1, options.readAhead) + 1);
+    std::vector<std::vector<unsigned char>> buffers(std::min<uint64_t>(tokens, slabCount));
+    std::vector<LeafResult> results(leavesPerSlab);
+    uint64_t nextRead = 0;
+
+    struct SlabToken {
+        uint64_t index;
+        std::vector<unsigned char>* data;
+    };
+
+    tbb::parallel_pipeline(
+        tokens,
+        tbb::make_filter<void, SlabToken>(
+            tbb::filter_mode::serial_in_order,
+            [&](tbb::flow_control& fc) -> SlabToken {
+                if (nextRead >= slabCount) {
+                    fc.stop();
+                    return {};
+                }
+                const uint64_t s = nextRead++;
+                auto& buf = buffers[s % buffers.size()];
+                const uint64_t rows = std::min<uint64_t>(kLeafDim, Z - s * kLeafDim);
+                const uint64_t bytes = X * Y * rows * vsize;
+                if (buf.size() < bytes) buf.resize(static_cast<std::size_t>(bytes));
+                stream.readExact(buf.data(), static_cast<std::size_t>(bytes));
+                return {s, &buf};
+            }) &
+            tbb::make_filter<SlabToken, void>(
+                tbb::filter_mode::serial_in_order,
+                [&](SlabToken tok) {
+                    SlabGeometry g;
+                    g.X = X;
+                    g.Y = Y;
+                    g.z0 = static_cast<int>(tok.index * kLeafDim);
+                    g.nz = static_cast<int>(std::min<uint64_t>(kLeafDim, Z - tok.index * kLeafDim));
+                    g.leavesX = leavesX;
+                    const unsigned char* slab = tok.data->data();
+                    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leavesPerSlab, 16), [&](const tbb::blocked_range<std::size_t>& range) {
+                        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+                            results[i] = LeafResult{};
+                            leafFn(slab, g, static_cast<int>(i % static_cast<std::size_t>(leavesX)),
+                                   static_cast<int>(i / static_cast<std::size_t>(leavesX)), rules, results[i]);
+                        }
+                    });
+                    for (std::size_t i = 0; i < leavesPerSlab; ++i) {
+                        LeafResult& res = results[i];
+                        const openvdb::Coord xyz(static_cast<int>(i % static_cast<std::size_t>(leavesX)) * kLeafDim,
+                                                 static_cast<int>(i / static_cast<std::size_t>(leavesX)) * kLeafDim, g.z0);
+                        switch (res.kind) {
+                        case LeafKind::Empty: break;
+                        case LeafKind::ActiveTile: tree.addTile(1, xyz, res.value, true); break;
+                        case LeafKind::InactiveTile: tree.addTile(1, xyz, res.value, false); break;
+                        case LeafKind::Leaf: tree.addLeaf(res.leaf.release()); break;
+                        }
+                    }
+                    if (options.progress) options.progress(tok.index + 1, slabCount);
+                }));
+
+    buffers.clear();
+    buffers.shrink_to_fit();
+    openvdb::tools::prune(tree, 0.0f);
+
+    if (stats) {
+        stats->info = info;
+        stats->activeVoxels = tree.activeVoxelCount();
+        stats->leafCount = tree.leafCount();
+        stats->tileCount = tree.activeTileCount();
+        stats->inputBytes = info.dataBytes();
+        stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        stats->peakRssBytes = peakRssBytes();
+    }
+    return grid;
+}
+
+RawConvertStats convertRawToVdb(const std::string& input, const std::string& output, const RawConvertOptions& options)
+{
+    const auto start = std::chrono::steady_clock::now();
+    // Header first: a bad input is reported before anything is created.
+    resolveVolumeInfo(input, options);
+
+    TempFileGuard guard;
+    guard.path = output + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+    {
+        FILE* f = std::fopen(guard.path.c_str(), "wb");
+        if (!f) {
+            const std::string err = std::strerror(errno);
+            guard.armed = false;  // nothing was created
+            throw RawInputError(output, "cannot write: " + err);
+        }
+        std::fclose(f);
+    }
+
+    RawConvertStats stats;
+    auto grid = convertToGrid(input, options, &stats);
+    grid->setSaveFloatAsHalf(options.half);
+    try {
+        openvdb::io::File file(guard.path);
+        file.write({grid});
+        file.close();
+    } catch (const openvdb::Exception& e) {
+        throw RawInputError(output, std::string("cannot write: ") + e.what());
+    } catch (const std::exception& e) {
+        throw RawInputError(output, std::string("cannot write: ") + e.what());
+    }
+    if (std::rename(guard.path.c_str(), output.c_str()) != 0)
+        throw RawInputError(output, std::string("cannot rename the finished file into place: ") + std::strerror(errno));
+    guard.armed = false;
+    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.peakRssBytes = peakRssBytes();
+    return stats;
+}
+
+} // namespace vdb_isosimp
