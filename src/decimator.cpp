@@ -1,0 +1,309 @@
+#include "decimator.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vdb_isosimp {
+
+namespace {
+
+using V3 = std::array<double, 3>;
+V3 sub(const V3& a, const V3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+V3 cross(const V3& a, const V3& b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
+double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// Faces whose area is this small relative to their squared edge lengths count as degenerate: a collapse
+// may not create one. (An equilateral triangle scores 0.29.)
+constexpr double kMinShape = 1e-5;
+// A collapse may not turn any face's normal by more than about 80 degrees.
+constexpr double kMinNormalCos = 0.17;
+
+// Min-heap order with a full tie-break, so the collapse sequence never depends on heap internals.
+template <typename C>
+bool later(const C& x, const C& y)
+{
+    if (x.cost != y.cost) return x.cost > y.cost;
+    if (x.a != y.a) return x.a > y.a;
+    return x.b > y.b;
+}
+
+} // namespace
+
+uint32_t Decimator::newVertex(const std::array<double, 3>& p)
+{
+    uint32_t id;
+    if (!mFreeVerts.empty()) {
+        id = mFreeVerts.back();
+        mFreeVerts.pop_back();
+    } else {
+        id = uint32_t(mVerts.size());
+        mVerts.emplace_back();
+    }
+    Vertex& v = mVerts[id];
+    v.p = p;
+    v.q = Quadric{};
+    ++v.version;  // a reused slot must not match stale queue entries
+    v.alive = true;
+    v.final = false;
+    v.faces.clear();
+    ++mVertexCount;
+    return id;
+}
+
+uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
+{
+    uint32_t id;
+    if (!mFreeFaces.empty()) {
+        id = mFreeFaces.back();
+        mFreeFaces.pop_back();
+    } else {
+        id = uint32_t(mFaces.size());
+        mFaces.emplace_back();
+    }
+    Face& f = mFaces[id];
+    f.v = v;
+    f.alive = true;
+    f.nonFinal = uint8_t(!mVerts[v[0]].final + !mVerts[v[1]].final + !mVerts[v[2]].final);
+    if (f.nonFinal) ++mUncontractibleFaces;
+    for (uint32_t x : v) mVerts[x].faces.push_back(id);
+    ++mFaceCount;
+    return id;
+}
+
+void Decimator::killFace(uint32_t id)
+{
+    Face& f = mFaces[id];
+    for (uint32_t x : f.v) {
+        auto& fl = mVerts[x].faces;
+        fl.erase(std::find(fl.begin(), fl.end(), id));
+    }
+    if (f.nonFinal) --mUncontractibleFaces;
+    f.alive = false;
+    mFreeFaces.push_back(id);
+    --mFaceCount;
+}
+
+void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out) const
+{
+    out.clear();
+    for (uint32_t f : mVerts[v].faces)
+        for (uint32_t x : mFaces[f].v)
+            if (x != v) out.push_back(x);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+void Decimator::push(uint32_t a, uint32_t b)
+{
+    const Vertex& va = mVerts[a];
+    const Vertex& vb = mVerts[b];
+    Quadric q = va.q;
+    q += vb.q;
+    Candidate c{0, a, b, va.version, vb.version, {}};
+    if (!q.optimum(c.p)) {
+        // Ill-conditioned (flat or straight regions): best of the ends and the midpoint.
+        const V3 mid{(va.p[0] + vb.p[0]) / 2, (va.p[1] + vb.p[1]) / 2, (va.p[2] + vb.p[2]) / 2};
+        const V3 options[3] = {va.p, vb.p, mid};
+        double best = q.error(options[0]);
+        c.p = options[0];
+        for (int i = 1; i < 3; ++i) {
+            const double e = q.error(options[i]);
+            if (e < best) { best = e; c.p = options[i]; }
+        }
+    }
+    c.cost = std::max(0.0, q.error(c.p));
+    mHeap.push_back(c);
+    std::push_heap(mHeap.begin(), mHeap.end(), [](const Candidate& x, const Candidate& y) { return later(x, y); });
+}
+
+void Decimator::finalize(uint32_t v)
+{
+    Vertex& vx = mVerts[v];
+    vx.final = true;
+    ++mFinalizations;
+    for (uint32_t f : vx.faces)
+        if (--mFaces[f].nonFinal == 0) --mUncontractibleFaces;
+    neighbours(v, mScratchA);
+    for (uint32_t n : mScratchA)
+        if (mVerts[n].final) push(std::min(v, n), std::max(v, n));
+}
+
+void Decimator::addBlock(const BlockMesh& block)
+{
+    std::vector<uint32_t> ids(block.keys.size());
+    for (size_t i = 0; i < block.keys.size(); ++i) {
+        auto it = mOpen.find(block.keys[i]);
+        if (it != mOpen.end()) {
+            ids[i] = it->second;
+        } else {
+            ids[i] = newVertex(block.positions[i]);
+            mOpen.emplace(block.keys[i], ids[i]);
+        }
+    }
+    for (const auto& t : block.triangles) {
+        const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
+        newFace(v);
+        // Area-weighted plane quadric of the face, added to its three corners.
+        const V3 n = cross(sub(mVerts[v[1]].p, mVerts[v[0]].p), sub(mVerts[v[2]].p, mVerts[v[0]].p));
+        const double len = std::sqrt(dot(n, n));
+        if (len > 0) {
+            const V3 u{n[0] / len, n[1] / len, n[2] / len};
+            Quadric q;
+            q.addPlane(u, -dot(u, mVerts[v[0]].p), 0.5 * len);
+            for (uint32_t x : v) mVerts[x].q += q;
+        }
+    }
+    for (size_t i = 0; i < block.keys.size(); ++i)
+        if (block.finalAfterBlock[i]) {
+            mOpen.erase(block.keys[i]);
+            finalize(ids[i]);
+        }
+}
+
+size_t Decimator::finalizeRemaining()
+{
+    std::vector<uint32_t> open;
+    for (const auto& kv : mOpen) open.push_back(kv.second);
+    std::sort(open.begin(), open.end());  // map order is not deterministic across runs
+    mOpen.clear();
+    for (uint32_t v : open) finalize(v);
+    return open.size();
+}
+
+bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const
+{
+    for (uint32_t f : mVerts[moved].faces) {
+        const auto& fv = mFaces[f].v;
+        if (fv[0] == other || fv[1] == other || fv[2] == other) continue;  // removed by the collapse
+        V3 q[3];
+        for (int i = 0; i < 3; ++i) q[i] = fv[i] == moved ? p : mVerts[fv[i]].p;
+        const V3 nNew = cross(sub(q[1], q[0]), sub(q[2], q[0]));
+        const double edges = dot(sub(q[1], q[0]), sub(q[1], q[0])) + dot(sub(q[2], q[1]), sub(q[2], q[1])) +
+                             dot(sub(q[0], q[2]), sub(q[0], q[2]));
+        const double lenNew = std::sqrt(dot(nNew, nNew));
+        if (!(lenNew > kMinShape * edges)) return false;
+        const V3& a = mVerts[fv[0]].p;
+        const V3 nOld = cross(sub(mVerts[fv[1]].p, a), sub(mVerts[fv[2]].p, a));
+        const double lenOld = std::sqrt(dot(nOld, nOld));
+        if (lenOld > 0 && dot(nOld, nNew) < kMinNormalCos * lenOld * lenNew) return false;
+    }
+    return true;
+}
+
+bool Decimator::collapse(const Candidate& c)
+{
+    const uint32_t a = c.a, b = c.b;
+    // The two faces on edge ab and their opposite corners.
+    uint32_t shared[2], opposite[2];
+    int ns = 0;
+    for (uint32_t f : mVerts[a].faces) {
+        const auto& fv = mFaces[f].v;
+        if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
+        if (ns == 2) return false;  // non-manifold edge
+        shared[ns] = f;
+        opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
+    }
+    if (ns != 2 || opposite[0] == opposite[1]) return false;
+    // Link condition: the only common neighbours of a and b are the two opposite corners.
+    neighbours(a, mScratchA);
+    neighbours(b, mScratchB);
+    size_t common = 0;
+    for (size_t i = 0, j = 0; i < mScratchA.size() && j < mScratchB.size();) {
+        if (mScratchA[i] < mScratchB[j]) ++i;
+        else if (mScratchB[j] < mScratchA[i]) ++j;
+        else { ++common; ++i; ++j; }
+    }
+    if (common != 2) return false;
+    // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
+    auto hasFaceWith = [&](uint32_t v) {
+        for (uint32_t f : mVerts[v].faces) {
+            const auto& fv = mFaces[f].v;
+            const bool c0 = fv[0] == opposite[0] || fv[1] == opposite[0] || fv[2] == opposite[0];
+            const bool c1 = fv[0] == opposite[1] || fv[1] == opposite[1] || fv[2] == opposite[1];
+            if (c0 && c1) return true;
+        }
+        return false;
+    };
+    if (hasFaceWith(a) && hasFaceWith(b)) return false;
+    if (!facesStayValid(a, b, c.p) || !facesStayValid(b, a, c.p)) return false;
+
+    // Keep the end with more faces (fewer lists to rewrite); the other one dies.
+    const uint32_t keep = mVerts[a].faces.size() >= mVerts[b].faces.size() ? a : b;
+    const uint32_t gone = keep == a ? b : a;
+    killFace(shared[0]);
+    killFace(shared[1]);
+    Vertex& vk = mVerts[keep];
+    Vertex& vg = mVerts[gone];
+    for (uint32_t f : vg.faces) {
+        for (uint32_t& x : mFaces[f].v)
+            if (x == gone) x = keep;
+        vk.faces.push_back(f);
+    }
+    vg.faces.clear();
+    vg.faces.shrink_to_fit();
+    vg.alive = false;
+    ++vg.version;
+    mFreeVerts.push_back(gone);
+    --mVertexCount;
+    vk.p = c.p;
+    vk.q += vg.q;
+    ++vk.version;
+    neighbours(keep, mScratchA);
+    for (uint32_t n : mScratchA)
+        if (mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
+    return true;
+}
+
+size_t Decimator::decimateTo(size_t targetFaces)
+{
+    size_t collapses = 0;
+    auto cmp = [](const Candidate& x, const Candidate& y) { return later(x, y); };
+    while (mFaceCount > targetFaces && !mHeap.empty()) {
+        std::pop_heap(mHeap.begin(), mHeap.end(), cmp);
+        const Candidate c = mHeap.back();
+        mHeap.pop_back();
+        const Vertex& va = mVerts[c.a];
+        const Vertex& vb = mVerts[c.b];
+        if (!va.alive || !vb.alive || va.version != c.versionA || vb.version != c.versionB) continue;
+        if (collapse(c)) ++collapses;
+    }
+    // Stale entries pile up; rebuild the queue when they dominate it.
+    if (mHeap.size() > 4 * mFaceCount + 1024) {
+        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(),
+                                   [&](const Candidate& c) {
+                                       return !mVerts[c.a].alive || !mVerts[c.b].alive ||
+                                              mVerts[c.a].version != c.versionA || mVerts[c.b].version != c.versionB;
+                                   }),
+                    mHeap.end());
+        std::make_heap(mHeap.begin(), mHeap.end(), cmp);
+    }
+    return collapses;
+}
+
+void Decimator::requeueAll()
+{
+    mHeap.clear();
+    for (uint32_t v = 0; v < mVerts.size(); ++v) {
+        if (!mVerts[v].alive || !mVerts[v].final) continue;
+        neighbours(v, mScratchB);
+        for (uint32_t n : mScratchB)
+            if (n > v && mVerts[n].final) push(v, n);
+    }
+}
+
+Mesh Decimator::mesh() const
+{
+    Mesh m;
+    std::vector<uint32_t> remap(mVerts.size(), UINT32_MAX);
+    // Vertices and faces in slot order: deterministic for a deterministic input sequence.
+    for (uint32_t v = 0; v < mVerts.size(); ++v) {
+        if (!mVerts[v].alive) continue;
+        remap[v] = uint32_t(m.points.size());
+        m.points.push_back({float(mVerts[v].p[0]), float(mVerts[v].p[1]), float(mVerts[v].p[2])});
+    }
+    for (const Face& f : mFaces)
+        if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+    return m;
+}
+
+} // namespace vdb_isosimp

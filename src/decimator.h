@@ -1,0 +1,88 @@
+// Incremental QEM decimator: the intermediate iso-surface, grown block by block and decimated in place.
+//
+// Garland & Heckbert, "Surface simplification using quadric error metrics" (1997), applied on the fly
+// as in Hou & Chen, "On-the-fly simplification of large iso-surfaces with per-cube vertex modifiability
+// detection": quadrics are accumulated as faces arrive and kept across batches; one persistent priority
+// queue holds the edges whose two ends are final (modifiability.h), with lazy invalidation by per-vertex
+// version numbers. A collapse moves the survivor to the quadric's optimum (else the best of the two ends
+// and the midpoint) and is refused when it would break the link condition (the mesh stays 2-manifold),
+// flip or degenerate a face.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "marching_cubes.h"
+#include "mesh.h"
+#include "quadric.h"
+
+namespace vdb_isosimp {
+
+class Decimator {
+public:
+    // Welds the block's vertices to the open frontier by edge key, adds its faces and their quadrics,
+    // then marks the block's final vertices and queues the edges that became contractible.
+    void addBlock(const BlockMesh& block);
+
+    // Collapses the cheapest contractible edges until at most `targetFaces` faces remain or no legal
+    // collapse is left. Returns the number of collapses made.
+    size_t decimateTo(size_t targetFaces);
+
+    // End of the volume: every vertex still open becomes final (none should remain in an unbounded
+    // domain; the count is returned so tests can check it).
+    size_t finalizeRemaining();
+
+    // Requeues every contractible edge: edges refused earlier may have become legal since.
+    void requeueAll();
+
+    size_t faceCount() const { return mFaceCount; }
+    size_t vertexCount() const { return mVertexCount; }
+    size_t uncontractibleFaces() const { return mUncontractibleFaces; }
+    size_t openVertices() const { return mOpen.size(); }
+    uint64_t finalizations() const { return mFinalizations; }
+
+    // The surviving mesh, compacted, vertices in creation order.
+    Mesh mesh() const;
+
+private:
+    struct Vertex {
+        std::array<double, 3> p{};
+        Quadric q;
+        uint32_t version = 0;
+        bool alive = false;
+        bool final = false;
+        std::vector<uint32_t> faces;
+    };
+    struct Face {
+        std::array<uint32_t, 3> v{};
+        uint8_t nonFinal = 0;  // how many of v are not final yet; > 0 makes the face uncontractible
+        bool alive = false;
+    };
+    struct Candidate {
+        double cost;
+        uint32_t a, b, versionA, versionB;
+        std::array<double, 3> p;
+    };
+
+    uint32_t newVertex(const std::array<double, 3>& p);
+    uint32_t newFace(const std::array<uint32_t, 3>& v);
+    void killFace(uint32_t f);
+    void finalize(uint32_t v);
+    void neighbours(uint32_t v, std::vector<uint32_t>& out) const;
+    void push(uint32_t a, uint32_t b);
+    bool collapse(const Candidate& c);
+    bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
+
+    std::vector<Vertex> mVerts;
+    std::vector<Face> mFaces;
+    std::vector<uint32_t> mFreeVerts, mFreeFaces;
+    std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
+    std::vector<Candidate> mHeap;
+    size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
+    uint64_t mFinalizations = 0;
+    std::vector<uint32_t> mScratchA, mScratchB;
+};
+
+} // namespace vdb_isosimp

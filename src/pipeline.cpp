@@ -1,0 +1,223 @@
+// The driver: a script of named stages.
+//   open (delayed loading) -> block list (z/y/x) -> [count faces, for --faces]
+//   -> extract blocks (parallel) -> integrate in order + decimate every B faces -> final decimation.
+#include "vdb_isosimp.h"
+
+#include "block_order.h"
+#include "decimator.h"
+#include "errors.h"
+#include "marching_cubes.h"
+#include "run_stats.h"
+#include "volume_reader.h"
+
+#include <tbb/global_control.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/blocked_range.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+namespace vdb_isosimp {
+
+namespace {
+
+void checkOptions(const Options& o)
+{
+    if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
+        std::ostringstream s;
+        s << "ratio must be in (0, 1], got " << o.ratio;
+        throw InputError(s.str());
+    }
+    if (o.batchFaces < 1000) throw InputError("batch must be at least 1000 faces");
+    if (!(o.initialRatio > 0.0 && o.initialRatio <= 1.0)) throw InputError("initial ratio must be in (0, 1]");
+    if (o.threads < 0) throw InputError("threads must be >= 0");
+    if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
+}
+
+// Exact face count of the full-resolution surface: the same case table over the same blocks.
+uint64_t countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, const Classifier& cls)
+{
+    return tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, blocks.size(), 16), uint64_t(0),
+        [&](const tbb::blocked_range<size_t>& r, uint64_t n) {
+            BlockSamples s;
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                vol.sample(blocks[i], s);
+                n += countBlockTriangles(s, cls);
+            }
+            return n;
+        },
+        [](uint64_t a, uint64_t b) { return a + b; });
+}
+
+// Serial, in-order stage: integration and the decimation schedule of the paper's section 4.2.
+class Integrator {
+public:
+    Integrator(const Options& o, double ratio, Report& rep) : mOpt(o), mRatio(ratio), mRep(rep)
+    {
+        mInitial = ratio < o.initialRatio;
+    }
+
+    void add(const BlockMesh& b)
+    {
+        const uint64_t incoming = b.triangles.size();
+        if (incoming == 0 && b.keys.empty()) return;
+        if (mInitial) {
+            // Initial phase: let the intermediate mesh grow to B faces, then decimate it at rate R_i,
+            // until the regular target catches up (avoids over-decimating the first batches).
+            if (mDec.faceCount() + incoming > mOpt.batchFaces && mDec.faceCount() > 0) {
+                const double fu = double(mDec.uncontractibleFaces());
+                decimate(uint64_t((double(mDec.faceCount()) - fu) * mOpt.initialRatio + fu));
+                if ((double(mFacesGenerated) - fu) * mRatio >= (double(mOpt.batchFaces) - fu) * mOpt.initialRatio)
+                    mInitial = false;
+                mSinceLast = 0;
+            }
+        } else if (mSinceLast + incoming > mOpt.batchFaces && mSinceLast > 0) {
+            const double fu = double(mDec.uncontractibleFaces());
+            decimate(uint64_t((double(mFacesGenerated) - fu) * mRatio + fu));
+            mSinceLast = 0;
+        }
+        mDec.addBlock(b);
+        mFacesGenerated += incoming;
+        mSinceLast += incoming;
+        mRep.maxIntermediateFaces = std::max<uint64_t>(mRep.maxIntermediateFaces, mDec.faceCount());
+    }
+
+    void finish(uint64_t targetFaces)
+    {
+        mRep.unfinalizedAtEnd = mDec.finalizeRemaining();
+        decimate(targetFaces);
+        // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
+        while (mDec.faceCount() > targetFaces) {
+            mDec.requeueAll();
+            if (mDec.decimateTo(targetFaces) == 0) break;
+        }
+    }
+
+    uint64_t facesGenerated() const { return mFacesGenerated; }
+    const Decimator& decimator() const { return mDec; }
+
+private:
+    void decimate(uint64_t target)
+    {
+        mRep.maxUncontractibleFaces = std::max<uint64_t>(mRep.maxUncontractibleFaces, mDec.uncontractibleFaces());
+        mDec.decimateTo(target);
+        ++mRep.decimations;
+    }
+
+    const Options& mOpt;
+    double mRatio;
+    Report& mRep;
+    Decimator mDec;
+    bool mInitial = false;
+    uint64_t mFacesGenerated = 0, mSinceLast = 0;
+};
+
+} // namespace
+
+Result simplifyFile(const std::string& path, const Options& opt, Progress* progress)
+{
+    Stopwatch clock;
+    checkOptions(opt);
+    std::unique_ptr<tbb::global_control> threads;
+    if (opt.threads > 0)
+        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, opt.threads);
+
+    // Open.
+    std::unique_ptr<Volume> vol = Volume::open(path, opt.gridName);
+    const VolumeInfo& info = vol->info();
+    Result result;
+    Report& rep = result.report;
+    rep.file = path;
+    rep.grid = info.gridName;
+    rep.valueType = info.valueType;
+    rep.gridClass = info.levelSet ? "level set" : "fog";
+
+    Classifier cls;
+    cls.insideBelow = info.levelSet;
+    if (opt.iso) {
+        cls.iso = *opt.iso;
+    } else if (info.levelSet) {
+        cls.iso = 0.0;
+    } else {
+        const auto range = vol->valueRange();
+        cls.iso = 0.5 * (range[0] + range[1]);
+        rep.isoDefaulted = true;
+    }
+    rep.iso = cls.iso;
+    // A mirroring transform reverses the winding; compensate so normals still point outward.
+    const bool flip = info.indexToWorld.determinant() < 0;
+
+    auto noSurface = [&]() {
+        const auto range = vol->valueRange();
+        std::ostringstream s;
+        s << path << ": no surface at iso-value " << cls.iso << " in grid '" << info.gridName
+          << "' (values lie in [" << range[0] << ", " << range[1] << "])";
+        return EmptySurfaceError(s.str());
+    };
+
+    // Block list.
+    const std::vector<BlockOrigin> blocks = vol->blocks(cls);
+    rep.blocks = blocks.size();
+
+    // Targets.
+    double ratio = opt.ratio;
+    if (opt.targetFaces > 0) {
+        rep.facesFull = countFaces(*vol, blocks, cls);
+        if (rep.facesFull == 0) throw noSurface();
+        ratio = std::min(1.0, double(opt.targetFaces) / double(rep.facesFull));
+    }
+
+    {
+        // Extract in parallel, integrate and decimate in order. The number of blocks in flight is
+        // bounded, so memory is too; the in-order stage makes the output independent of threads.
+        Integrator integ(opt, ratio, rep);
+        size_t next = 0, done = 0;
+        const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
+        tbb::parallel_pipeline(
+            tokens,
+            tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
+                                           [&](tbb::flow_control& fc) -> size_t {
+                                               if (next == blocks.size()) { fc.stop(); return 0; }
+                                               return next++;
+                                           }) &
+                tbb::make_filter<size_t, std::shared_ptr<BlockMesh>>(
+                    tbb::filter_mode::parallel,
+                    [&](size_t i) {
+                        BlockSamples s;
+                        vol->sample(blocks[i], s);
+                        auto m = std::make_shared<BlockMesh>();
+                        m->blockIndex = i;
+                        extractBlock(s, cls, info.indexToWorld, flip, *m);
+                        return m;
+                    }) &
+                tbb::make_filter<std::shared_ptr<BlockMesh>, void>(
+                    tbb::filter_mode::serial_in_order, [&](std::shared_ptr<BlockMesh> m) {
+                        integ.add(*m);
+                        ++done;
+                        if (progress && (done % 256 == 0 || done == blocks.size()) &&
+                            !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))
+                            throw Cancelled("cancelled");
+                    }));
+
+        if (opt.targetFaces == 0) rep.facesFull = integ.facesGenerated();
+        if (rep.facesFull == 0) throw noSurface();
+        rep.ratio = ratio;
+        rep.facesTarget = opt.targetFaces > 0 ? std::min<uint64_t>(opt.targetFaces, rep.facesFull)
+                                              : uint64_t(std::llround(ratio * double(rep.facesFull)));
+        integ.finish(rep.facesTarget);
+        result.mesh = integ.decimator().mesh();
+    }
+    rep.facesOut = result.mesh.triangles.size();
+    rep.vertsOut = result.mesh.points.size();
+    rep.seconds = clock.seconds();
+    rep.peakRssMb = peakRssMb();
+    return result;
+
+}
+
+} // namespace vdb_isosimp

@@ -1,0 +1,161 @@
+#include "volume_reader.h"
+
+#include "block_order.h"
+#include "errors.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <cmath>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+
+namespace vdb_isosimp {
+
+namespace {
+
+template <typename GridT>
+class VolumeT final : public Volume {
+public:
+    VolumeT(typename GridT::Ptr grid, VolumeInfo info) : mGrid(std::move(grid)) { mInfo = std::move(info); }
+
+    std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const override
+    {
+        return collectBlocks(mGrid->tree(), c);
+    }
+
+    void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
+    {
+        typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        out.origin = origin;
+        constexpr int N = BlockSamples::N;
+        openvdb::Coord ijk;
+        for (int z = 0; z < N; ++z) {
+            ijk.z() = origin[2] + z;
+            for (int y = 0; y < N; ++y) {
+                ijk.y() = origin[1] + y;
+                for (int x = 0; x < N; ++x) {
+                    ijk.x() = origin[0] + x;
+                    const double v = double(acc.getValue(ijk));
+                    if (!std::isfinite(v)) {
+                        std::ostringstream s;
+                        s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << v
+                          << " (NaN/Inf values are not allowed)";
+                        throw InputError(s.str());
+                    }
+                    out.at(x, y, z) = v;
+                }
+            }
+        }
+    }
+
+    std::array<double, 2> valueRange() const override
+    {
+        double lo = double(mGrid->background()), hi = lo;
+        for (auto it = mGrid->tree().cbeginValueAll(); it; ++it) {
+            const double v = double(*it);
+            lo = std::min(lo, v);
+            hi = std::max(hi, v);
+        }
+        return {lo, hi};
+    }
+
+private:
+    typename GridT::Ptr mGrid;
+};
+
+Affine affineOf(const openvdb::math::Transform& xform)
+{
+    // OpenVDB multiplies row vectors: world = index * M, translation in row 3.
+    const openvdb::Mat4d m = xform.baseMap()->getAffineMap()->getMat4();
+    Affine a;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) a.m[r * 4 + c] = m(c, r);
+        a.m[r * 4 + 3] = m(3, r);
+    }
+    return a;
+}
+
+bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
+
+} // namespace
+
+std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName)
+{
+    static std::once_flag init;
+    std::call_once(init, [] { openvdb::initialize(); });
+
+    if (!std::ifstream(path, std::ios::binary).good())
+        throw InputError(path + ": cannot open file for reading (missing or unreadable)");
+
+    openvdb::io::File file(path);
+    openvdb::GridPtrVecPtr metas;
+    try {
+        file.open(/*delayLoad=*/true);
+        metas = file.readAllGridMetadata();
+    } catch (const std::exception& e) {
+        throw InputError(path + ": not a readable OpenVDB file (" + e.what() + ")");
+    }
+    if (!metas || metas->empty()) throw InputError(path + ": the file holds no grids");
+
+    openvdb::GridBase::ConstPtr meta;
+    if (gridName.empty()) {
+        for (const auto& g : *metas)
+            if (isScalar(*g)) { meta = g; break; }
+        if (!meta) {
+            std::string names;
+            for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName() + " (" + g->valueType() + ")";
+            throw InputError(path + ": no float or double grid in the file (grids: " + names + ")");
+        }
+    } else {
+        for (const auto& g : *metas)
+            if (g->getName() == gridName) { meta = g; break; }
+        if (!meta) {
+            std::string names;
+            for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName();
+            throw InputError(path + ": no grid named '" + gridName + "' (grids: " + names + ")");
+        }
+        if (!isScalar(*meta))
+            throw InputError(path + ": grid '" + gridName + "' has value type " + meta->valueType() +
+                             "; only float and double grids can be meshed");
+    }
+
+    openvdb::GridBase::Ptr grid;
+    try {
+        grid = file.readGrid(meta->getName());
+    } catch (const std::exception& e) {
+        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + e.what() + ")");
+    }
+    if (!grid->transform().isLinear())
+        throw InputError(path + ": grid '" + meta->getName() + "' has a non-linear transform (" +
+                         grid->transform().mapType() + "); only linear transforms are supported");
+
+    VolumeInfo info;
+    info.file = path;
+    info.gridName = grid->getName();
+    info.valueType = grid->valueType();
+    info.levelSet = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
+    info.indexToWorld = affineOf(grid->transform());
+    if (std::abs(info.indexToWorld.determinant()) < 1e-300)
+        throw InputError(path + ": grid '" + info.gridName + "' has a singular transform");
+
+    std::unique_ptr<Volume> vol;
+    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
+        info.background = f->background();
+        info.leafCount = f->tree().leafCount();
+        info.activeVoxels = f->activeVoxelCount();
+        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info);
+    } else {
+        auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid);
+        info.background = d->background();
+        info.leafCount = d->tree().leafCount();
+        info.activeVoxels = d->activeVoxelCount();
+        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info);
+    }
+    if (info.activeVoxels == 0 && info.leafCount == 0)
+        throw InputError(path + ": grid '" + info.gridName + "' is empty (no active voxels)");
+    return vol;
+}
+
+} // namespace vdb_isosimp

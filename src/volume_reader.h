@@ -1,0 +1,46 @@
+// Volume reader: opens a scalar grid of an OpenVDB file with delayed loading (voxel buffers are read
+// when first sampled) and gives the rest of the pipeline what it needs, independent of float/double:
+// the block list, 9^3 block samples, the index-to-world map and the grid's sign convention.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "marching_cubes.h"
+
+namespace vdb_isosimp {
+
+struct VolumeInfo {
+    std::string file;
+    std::string gridName;
+    std::string valueType;      // "float" or "double"
+    bool levelSet = false;      // grid class level set: inside is value < iso
+    Affine indexToWorld;
+    double background = 0.0;
+    uint64_t leafCount = 0;
+    uint64_t activeVoxels = 0;
+};
+
+class Volume {
+public:
+    // Opens `gridName` (empty: the first float/double grid) of `path`.
+    // @throw InputError naming the file and the problem.
+    static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName);
+    virtual ~Volume() = default;
+
+    const VolumeInfo& info() const { return mInfo; }
+
+    // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
+    virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
+    // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf.
+    virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
+    // Smallest and largest value stored in the grid (voxels, tiles and background).
+    virtual std::array<double, 2> valueRange() const = 0;
+
+protected:
+    VolumeInfo mInfo;
+};
+
+} // namespace vdb_isosimp

@@ -1,0 +1,195 @@
+// vdb_isosimp IN.vdb: parse the command line, run one library call, report. Errors become one line on
+// stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
+#include "errors.h"
+#include "mesh_writer.h"
+#include "run_stats.h"
+#include "vdb_isosimp.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <unistd.h>
+
+namespace {
+
+using namespace vdb_isosimp;
+
+// A one-line bar on a terminal: blocks done, faces kept, elapsed time and an estimate of the rest.
+class TerminalProgress final : public Progress {
+public:
+    bool update(double fraction, uint64_t facesKept) override
+    {
+        const double t = mClock.seconds();
+        if (fraction < 1.0 && t - mLast < 0.2) return true;
+        mLast = t;
+        const int width = 30, filled = int(fraction * width);
+        std::string bar(size_t(filled), '#');
+        bar.resize(width, '.');
+        const double eta = fraction > 0.01 ? t * (1.0 - fraction) / fraction : 0.0;
+        std::fprintf(stderr, "\r[%s] %5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", bar.c_str(), 100.0 * fraction,
+                     (unsigned long long)facesKept, t, eta);
+        if (fraction >= 1.0) std::fprintf(stderr, "\r%*s\r", 90, "");
+        std::fflush(stderr);
+        return true;
+    }
+
+private:
+    Stopwatch mClock;
+    double mLast = -1.0;
+};
+
+std::string stemOf(const std::string& path)
+{
+    const auto slash = path.find_last_of('/');
+    std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+    const auto dot = name.find_last_of('.');
+    return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
+}
+
+std::string jsonEscape(const std::string& s)
+{
+    std::string o;
+    for (char c : s) {
+        if (c == '"' || c == '\\') { o += '\\'; o += c; }
+        else if (static_cast<unsigned char>(c) < 0x20) { char b[8]; std::snprintf(b, sizeof b, "\\u%04x", c); o += b; }
+        else o += c;
+    }
+    return o;
+}
+
+std::string reportJson(const Report& r, const std::string& output, const Options& o)
+{
+    std::ostringstream j;
+    j.precision(10);
+    j << "{\n"
+      << "  \"input\": \"" << jsonEscape(r.file) << "\",\n"
+      << "  \"output\": \"" << jsonEscape(output) << "\",\n"
+      << "  \"grid\": \"" << jsonEscape(r.grid) << "\",\n"
+      << "  \"value_type\": \"" << r.valueType << "\",\n"
+      << "  \"grid_class\": \"" << r.gridClass << "\",\n"
+      << "  \"iso\": " << r.iso << ",\n"
+      << "  \"ratio\": " << r.ratio << ",\n"
+      << "  \"batch\": " << o.batchFaces << ",\n"
+      << "  \"blocks\": " << r.blocks << ",\n"
+      << "  \"faces_full\": " << r.facesFull << ",\n"
+      << "  \"faces_target\": " << r.facesTarget << ",\n"
+      << "  \"faces_out\": " << r.facesOut << ",\n"
+      << "  \"verts_out\": " << r.vertsOut << ",\n"
+      << "  \"decimations\": " << r.decimations << ",\n"
+      << "  \"max_intermediate_faces\": " << r.maxIntermediateFaces << ",\n"
+      << "  \"max_uncontractible_faces\": " << r.maxUncontractibleFaces << ",\n"
+      << "  \"seconds\": " << r.seconds << ",\n"
+      << "  \"peak_rss_mb\": " << r.peakRssMb << "\n"
+      << "}\n";
+    return j.str();
+}
+
+// Text files (the report) also go through a temporary file and a rename.
+void writeText(const std::string& path, const std::string& text)
+{
+    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    {
+        std::ofstream f(tmp, std::ios::binary);
+        f << text;
+        f.flush();
+        if (!f) {
+            std::remove(tmp.c_str());
+            throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+        }
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+    }
+}
+
+// Fails fast, before the long run, when the output cannot be created where asked.
+void probeWritable(const std::string& path)
+{
+    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
+    std::fclose(f);
+    std::remove(tmp.c_str());
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+    CLI::App app{"vdb_isosimp: extract the iso-surface of an OpenVDB grid with Marching Cubes and simplify it\n"
+                 "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
+                 "Output: binary PLY in world space, triangles counter-clockwise seen from outside.\n"
+                 "Exit codes: 0 done, 1 bad input or output, 2 bad usage, 3 no surface at the iso-value."};
+    std::string input, output, reportPath;
+    Options opt;
+    double iso = 0.0;
+    bool quiet = false;
+
+    app.add_option("input", input, "Input .vdb file")->required();
+    app.add_option("-o,--output", output, "Output mesh (.ply). Default: <input stem>.ply in the current directory");
+    app.add_option("--grid", opt.gridName, "Grid to mesh. Default: the first float or double grid");
+    auto* isoOpt = app.add_option("--iso", iso,
+                                  "Iso-value. Default: 0 for level sets (inside: value < iso); for fog and other\n"
+                                  "grids (inside: value > iso) the midpoint of the value range, which is printed");
+    auto* ratioOpt = app.add_option("-r,--ratio", opt.ratio, "Decimation rate R in (0,1]: faces kept / full faces")
+                         ->default_val(opt.ratio)
+                         ->check(CLI::Range(0.0, 1.0));
+    auto* facesOpt = app.add_option("-f,--faces", opt.targetFaces,
+                                    "Keep this many faces instead of a ratio (an exact counting pass finds R)")
+                         ->check(CLI::PositiveNumber);
+    ratioOpt->excludes(facesOpt);
+    app.add_option("-b,--batch", opt.batchFaces,
+                   "B: faces extracted between two decimations; larger is slower but closer to in-core quality")
+        ->default_val(opt.batchFaces)
+        ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 40));
+    app.add_option("-j,--threads", opt.threads, "Worker threads, 0 = all cores; the output is the same for any count")
+        ->default_val(opt.threads)
+        ->check(CLI::Range(0, 1024));
+    app.add_option("--report", reportPath, "Also write a JSON report (faces, decimations, memory, time) to this file");
+    app.add_flag("-q,--quiet", quiet, "Print errors only (no progress bar, no summary)");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::cerr << "vdb_isosimp: " << e.what() << " (see --help)\n";
+        return 2;
+    }
+    if (*isoOpt) opt.iso = iso;
+    if (opt.ratio <= 0.0) {
+        std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
+        return 2;
+    }
+    if (output.empty()) output = stemOf(input) + ".ply";
+
+    try {
+        probeWritable(output);
+        TerminalProgress bar;
+        const bool showBar = !quiet && ::isatty(STDERR_FILENO);
+        Result res = simplifyFile(input, opt, showBar ? &bar : nullptr);
+        const Report& r = res.report;
+        if (r.isoDefaulted && !quiet)
+            std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
+                         r.gridClass.c_str(), r.grid.c_str(), r.iso);
+        writeMesh(res.mesh, output, "vdb_isosimp grid " + r.grid);
+        if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
+        if (!quiet)
+            std::fprintf(stderr, "vdb_isosimp: %s: %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
+                         input.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
+                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
+        return 0;
+    } catch (const EmptySurfaceError& e) {
+        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        return 3;
+    } catch (const std::exception& e) {
+        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        return 1;
+    }
+}
