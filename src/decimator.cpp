@@ -15,8 +15,6 @@ double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] *
 // Faces whose area is this small relative to their squared edge lengths count as degenerate: a collapse
 // may not create one. (An equilateral triangle scores 0.29.)
 constexpr double kMinShape = 1e-5;
-// A collapse may not turn any face's normal by more than about 80 degrees.
-constexpr double kMinNormalCos = 0.17;
 
 // Min-heap order with a full tie-break, so the collapse sequence never depends on heap internals.
 template <typename C>
@@ -181,11 +179,19 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         const double edges = dot(sub(q[1], q[0]), sub(q[1], q[0])) + dot(sub(q[2], q[1]), sub(q[2], q[1])) +
                              dot(sub(q[0], q[2]), sub(q[0], q[2]));
         const double lenNew = std::sqrt(dot(nNew, nNew));
-        if (!(lenNew > kMinShape * edges)) return false;
         const V3& a = mVerts[fv[0]].p;
         const V3 nOld = cross(sub(mVerts[fv[1]].p, a), sub(mVerts[fv[2]].p, a));
         const double lenOld = std::sqrt(dot(nOld, nOld));
-        if (lenOld > 0 && dot(nOld, nNew) < kMinNormalCos * lenOld * lenNew) return false;
+        if (!(lenNew > kMinShape * edges)) {
+            // A face that was already degenerate (values exactly at the iso-value make coincident
+            // vertices) may stay so: refusing would pin it forever instead of letting it be collapsed.
+            const double edgesOld = dot(sub(mVerts[fv[1]].p, a), sub(mVerts[fv[1]].p, a)) +
+                                    dot(sub(mVerts[fv[2]].p, mVerts[fv[1]].p), sub(mVerts[fv[2]].p, mVerts[fv[1]].p)) +
+                                    dot(sub(a, mVerts[fv[2]].p), sub(a, mVerts[fv[2]].p));
+            if (lenOld > kMinShape * edgesOld) return false;
+            continue;
+        }
+        if (lenOld > 0 && dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew) return false;
     }
     return true;
 }
@@ -225,7 +231,14 @@ bool Decimator::collapse(const Candidate& c)
         return false;
     };
     if (hasFaceWith(a) && hasFaceWith(b)) return false;
-    if (!facesStayValid(a, b, c.p) || !facesStayValid(b, a, c.p)) return false;
+    // The optimum first; when it would fold or degenerate a face, the ends and the midpoint.
+    const V3& pa = mVerts[a].p;
+    const V3& pb = mVerts[b].p;
+    const V3 places[4] = {c.p, pa, pb, {(pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2, (pa[2] + pb[2]) / 2}};
+    int place = 0;
+    while (place < 4 && !(facesStayValid(a, b, places[place]) && facesStayValid(b, a, places[place]))) ++place;
+    if (place == 4) return false;
+    const V3 target = places[place];
 
     // Keep the end with more faces (fewer lists to rewrite); the other one dies.
     const uint32_t keep = mVerts[a].faces.size() >= mVerts[b].faces.size() ? a : b;
@@ -245,7 +258,7 @@ bool Decimator::collapse(const Candidate& c)
     ++vg.version;
     mFreeVerts.push_back(gone);
     --mVertexCount;
-    vk.p = c.p;
+    vk.p = target;
     vk.q += vg.q;
     ++vk.version;
     neighbours(keep, mScratchA);

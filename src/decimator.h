@@ -37,6 +37,11 @@ public:
     // Requeues every contractible edge: edges refused earlier may have become legal since.
     void requeueAll();
 
+    // Largest turn of a face normal a collapse may cause, as a cosine. Default: about 80 degrees. The
+    // final pass relaxes it when small closed components (noise, scans) would otherwise keep the
+    // mesh above its target.
+    void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
+
     size_t faceCount() const { return mFaceCount; }
     size_t vertexCount() const { return mVertexCount; }
     size_t uncontractibleFaces() const { return mUncontractibleFaces; }
@@ -82,6 +87,7 @@ private:
     std::vector<Candidate> mHeap;
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0;
+    double mMinNormalCos = 0.17;
     std::vector<uint32_t> mScratchA, mScratchB;
 };
 

@@ -68,17 +68,17 @@ public:
         if (incoming == 0 && b.keys.empty()) return;
         if (mInitial) {
             // Initial phase: let the intermediate mesh grow to B faces, then decimate it at rate R_i,
-            // until the regular target catches up (avoids over-decimating the first batches).
+            // until the regular target catches up (avoids over-decimating the first batches). Never
+            // below the regular target: the final mesh must still be able to reach R*F.
             if (mDec.faceCount() + incoming > mOpt.batchFaces && mDec.faceCount() > 0) {
-                const double fu = double(mDec.uncontractibleFaces());
-                decimate(uint64_t((double(mDec.faceCount()) - fu) * mOpt.initialRatio + fu));
-                if ((double(mFacesGenerated) - fu) * mRatio >= (double(mOpt.batchFaces) - fu) * mOpt.initialRatio)
-                    mInitial = false;
+                const uint64_t initial = phaseTarget(double(mDec.faceCount()), mOpt.initialRatio);
+                const uint64_t regular = phaseTarget(double(mFacesGenerated), mRatio);
+                if (regular >= initial) mInitial = false;
+                decimate(std::max(initial, regular));
                 mSinceLast = 0;
             }
         } else if (mSinceLast + incoming > mOpt.batchFaces && mSinceLast > 0) {
-            const double fu = double(mDec.uncontractibleFaces());
-            decimate(uint64_t((double(mFacesGenerated) - fu) * mRatio + fu));
+            decimate(phaseTarget(double(mFacesGenerated), mRatio));
             mSinceLast = 0;
         }
         mDec.addBlock(b);
@@ -92,16 +92,28 @@ public:
         mRep.unfinalizedAtEnd = mDec.finalizeRemaining();
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
-        while (mDec.faceCount() > targetFaces) {
-            mDec.requeueAll();
-            if (mDec.decimateTo(targetFaces) == 0) break;
+        // Then, only if still above target, allow larger normal turns step by step (never a flip).
+        for (double turn : {0.17, 0.0, -0.3, -0.6}) {
+            mDec.setMaxNormalTurn(turn);
+            while (mDec.faceCount() > targetFaces) {
+                mDec.requeueAll();
+                if (mDec.decimateTo(targetFaces) == 0) break;
+            }
         }
+        mDec.setMaxNormalTurn(0.17);
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
     const Decimator& decimator() const { return mDec; }
 
 private:
+    // F_t = (F - F_u) * rate + F_u: only the contractible part of the mesh is held to the rate.
+    uint64_t phaseTarget(double faces, double rate) const
+    {
+        const double fu = double(mDec.uncontractibleFaces());
+        return uint64_t(std::max(0.0, faces - fu) * rate + fu);
+    }
+
     void decimate(uint64_t target)
     {
         mRep.maxUncontractibleFaces = std::max<uint64_t>(mRep.maxUncontractibleFaces, mDec.uncontractibleFaces());

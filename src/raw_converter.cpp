@@ -15,6 +15,7 @@
 #include <cstring>
 #include <memory>
 #include <sys/resource.h>
+#include <type_traits>
 #include <unistd.h>
 #include <vector>
 
@@ -69,14 +70,16 @@ struct SlabGeometry {
     int leavesX;  // ceil(X/8)
 };
 
-/// Converts the voxels of one 8x8x8 block of a slab.
-template <typename T, bool Swap>
+/// Converts the voxels of one 8x8x8 block of a slab. `Plain`: fog volume, no scaling, no clamping,
+/// zero tolerance (the common case, reduced to a min/max scan).
+template <typename T, bool Swap, bool Plain>
 void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int by, const ValueRules& r, LeafResult& out)
 {
     const int x0 = bx * kLeafDim, y0 = by * kLeafDim;
     const int nx = static_cast<int>(std::min<uint64_t>(kLeafDim, g.X - static_cast<uint64_t>(x0)));
     const int ny = static_cast<int>(std::min<uint64_t>(kLeafDim, g.Y - static_cast<uint64_t>(y0)));
     const bool whole = nx == kLeafDim && ny == kLeafDim && g.nz == kLeafDim;
+    constexpr bool kFloat = std::is_floating_point_v<T>;
 
     float vals[LeafT::SIZE];
     float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
@@ -86,26 +89,44 @@ void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int b
     for (int z = 0; z < g.nz; ++z) {
         for (int y = 0; y < ny; ++y) {
             const unsigned char* row = slab + ((static_cast<uint64_t>(z) * g.Y + static_cast<uint64_t>(y0 + y)) * g.X + static_cast<uint64_t>(x0)) * sizeof(T);
-            for (int x = 0; x < nx; ++x) {
-                double d = static_cast<double>(loadValue<T, Swap>(row + x * sizeof(T)));
-                if (r.scaled) d = d * r.scale + r.intercept;
-                if (r.clamped) d = std::min(std::max(d, r.lo), r.hi);
-                const float v = static_cast<float>(d);
-                vals[(x << 6) | (y << 3) | z] = v;
-                if (v != v) { hasNaN = true; continue; }
-                vmin = std::min(vmin, v);
-                vmax = std::max(vmax, v);
-                if (!r.levelSet) {
-                    nearBg += std::fabs(static_cast<double>(v) - bg) <= tol;
-                } else {
-                    nearBg += static_cast<double>(v) >= bg - tol;
-                    inside += static_cast<double>(v) <= -bg + tol;
+            float* dst = vals + ((y << 3) | z);
+            if constexpr (Plain) {
+                for (int x = 0; x < nx; ++x) {
+                    const float v = static_cast<float>(loadValue<T, Swap>(row + x * sizeof(T)));
+                    dst[x << 6] = v;
+                    if constexpr (kFloat) {
+                        if (v != v) { hasNaN = true; continue; }
+                    }
+                    vmin = std::min(vmin, v);
+                    vmax = std::max(vmax, v);
+                }
+            } else {
+                for (int x = 0; x < nx; ++x) {
+                    double d = static_cast<double>(loadValue<T, Swap>(row + x * sizeof(T)));
+                    if (r.scaled) d = d * r.scale + r.intercept;
+                    if (r.clamped) d = std::min(std::max(d, r.lo), r.hi);
+                    const float v = static_cast<float>(d);
+                    dst[x << 6] = v;
+                    if (v != v) { hasNaN = true; continue; }
+                    vmin = std::min(vmin, v);
+                    vmax = std::max(vmax, v);
+                    if (!r.levelSet) {
+                        nearBg += std::fabs(static_cast<double>(v) - bg) <= tol;
+                    } else {
+                        nearBg += static_cast<double>(v) >= bg - tol;
+                        inside += static_cast<double>(v) <= -bg + tol;
+                    }
                 }
             }
         }
     }
     const int count = nx * ny * g.nz;
-    if (!hasNaN) {
+    if constexpr (Plain) {
+        if (!hasNaN && vmin == vmax) {
+            if (vmin == r.background) { out.kind = LeafKind::Empty; return; }
+            if (whole) { out.kind = LeafKind::ActiveTile; out.value = vmin; return; }
+        }
+    } else if (!hasNaN) {
         if (nearBg == count) { out.kind = LeafKind::Empty; return; }
         if (whole && inside == count) { out.kind = LeafKind::InactiveTile; out.value = -r.background; return; }
         if (whole && static_cast<double>(vmax) - static_cast<double>(vmin) <= 2 * tol && nearBg == 0 && inside == 0) {
@@ -148,22 +169,24 @@ void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int b
 using LeafFn = void (*)(const unsigned char*, const SlabGeometry&, int, int, const ValueRules&, LeafResult&);
 
 template <typename T>
-LeafFn pickFn(bool swap)
+LeafFn pickFn(bool swap, bool plain)
 {
-    return swap ? &convertLeaf<T, true> : &convertLeaf<T, false>;
+    if (sizeof(T) == 1) swap = false;
+    if (plain) return swap ? &convertLeaf<T, true, true> : &convertLeaf<T, false, true>;
+    return swap ? &convertLeaf<T, true, false> : &convertLeaf<T, false, false>;
 }
 
-LeafFn leafFunction(ScalarType t, bool swap)
+LeafFn leafFunction(ScalarType t, bool swap, bool plain)
 {
     switch (t) {
-    case ScalarType::U8: return pickFn<uint8_t>(swap);
-    case ScalarType::I8: return pickFn<int8_t>(swap);
-    case ScalarType::U16: return pickFn<uint16_t>(swap);
-    case ScalarType::I16: return pickFn<int16_t>(swap);
-    case ScalarType::U32: return pickFn<uint32_t>(swap);
-    case ScalarType::I32: return pickFn<int32_t>(swap);
-    case ScalarType::F32: return pickFn<float>(swap);
-    case ScalarType::F64: return pickFn<double>(swap);
+    case ScalarType::U8: return pickFn<uint8_t>(swap, plain);
+    case ScalarType::I8: return pickFn<int8_t>(swap, plain);
+    case ScalarType::U16: return pickFn<uint16_t>(swap, plain);
+    case ScalarType::I16: return pickFn<int16_t>(swap, plain);
+    case ScalarType::U32: return pickFn<uint32_t>(swap, plain);
+    case ScalarType::I32: return pickFn<int32_t>(swap, plain);
+    case ScalarType::F32: return pickFn<float>(swap, plain);
+    case ScalarType::F64: return pickFn<double>(swap, plain);
     }
     return nullptr;
 }
@@ -254,7 +277,8 @@ openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvert
     const int leavesX = static_cast<int>((X + kLeafDim - 1) / kLeafDim);
     const int leavesY = static_cast<int>((Y + kLeafDim - 1) / kLeafDim);
     const std::size_t leavesPerSlab = static_cast<std::size_t>(leavesX) * static_cast<std::size_t>(leavesY);
-    const LeafFn leafFn = leafFunction(info.type, vsize > 1 && info.byteOrder != hostByteOrder());
+    const bool plain = !rules.levelSet && !rules.scaled && !rules.clamped && rules.tolerance == 0;
+    const LeafFn leafFn = leafFunction(info.type, vsize > 1 && info.byteOrder != hostByteOrder(), plain);
 
     DataStream stream(info.dataFile, info.fileOffset, info.encoding, info.decodedSkip + info.dataBytes());
     stream.skip(info.decodedSkip);

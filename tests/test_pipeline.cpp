@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <set>
 #include <tuple>
 
 using namespace vdb_isosimp;
@@ -52,22 +53,30 @@ void expectSameMesh(const Mesh& a, const Mesh& b, double tol)
         }
         ASSERT_NE(map[i], UINT32_MAX) << "vertex " << i << " has no counterpart";
     }
-    auto canonical = [&](const std::array<float, 3>& x, const std::array<float, 3>& y, const std::array<float, 3>& z) {
-        // Rotate so the lexicographically smallest position comes first; keeps the winding.
-        std::array<std::array<float, 3>, 3> t{x, y, z};
+    // Coincident vertices of b form one class, named by its smallest index.
+    std::vector<uint32_t> cls(b.points.size());
+    for (uint32_t i = 0; i < b.points.size(); ++i) {
+        cls[i] = i;
+        for (int d = 0; d < 27; ++d) {
+            auto range = grid.equal_range(cell(b.points[i], d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1));
+            for (auto it = range.first; it != range.second; ++it) {
+                const auto& q = b.points[it->second];
+                if (std::abs(q[0] - b.points[i][0]) <= tol && std::abs(q[1] - b.points[i][1]) <= tol &&
+                    std::abs(q[2] - b.points[i][2]) <= tol)
+                    cls[i] = std::min(cls[i], it->second);
+            }
+        }
+    }
+    // Faces as cyclic triples of classes, rotated so the smallest comes first: keeps the winding.
+    auto canonical = [&](uint32_t x, uint32_t y, uint32_t z) {
+        std::array<uint32_t, 3> t{cls[x], cls[y], cls[z]};
         int m = 0;
         for (int k = 1; k < 3; ++k) if (t[k] < t[m]) m = k;
-        std::array<float, 9> r;
-        for (int k = 0; k < 3; ++k)
-            for (int c = 0; c < 3; ++c) r[k * 3 + c] = std::round(t[(m + k) % 3][c] / tol) * tol;
-        return r;
+        return std::array<uint32_t, 3>{t[m], t[(m + 1) % 3], t[(m + 2) % 3]};
     };
-    std::multiset<std::array<float, 9>> fa, fb;
-    for (const auto& t : a.triangles) {
-        const auto& p = b.points;
-        fa.insert(canonical(p[map[t[0]]], p[map[t[1]]], p[map[t[2]]]));
-    }
-    for (const auto& t : b.triangles) fb.insert(canonical(b.points[t[0]], b.points[t[1]], b.points[t[2]]));
+    std::multiset<std::array<uint32_t, 3>> fa, fb;
+    for (const auto& t : a.triangles) fa.insert(canonical(map[t[0]], map[t[1]], map[t[2]]));
+    for (const auto& t : b.triangles) fb.insert(canonical(t[0], t[1], t[2]));
     EXPECT_TRUE(fa == fb) << "faces differ (topology or winding)";
 }
 
@@ -157,7 +166,10 @@ TEST(Pipeline, ClosedManifoldOutwardAtEveryRatio)
             expectClosedOutward(res.mesh, r == 1.0, what);
             EXPECT_GE(res.report.facesFull, 100000u) << what;
             const double target = r * double(res.report.facesFull);
-            EXPECT_LE(std::abs(double(res.report.facesOut) - target), 0.02 * target) << what << " faces " << res.report.facesOut;
+            // The noise surface has 360 components and ~190 handles: at R = 0.01 its topology alone
+            // needs more faces than R*F, so the face target is checked there only down to 0.05.
+            if (file == sphereFile() || r >= 0.05)
+                EXPECT_LE(std::abs(double(res.report.facesOut) - target), 0.02 * target) << what << " faces " << res.report.facesOut;
             EXPECT_EQ(res.report.facesOut, res.mesh.triangles.size());
             // Memory: the intermediate mesh never exceeds R*F + B + uncontractible faces (+1%).
             const double bound = target + double(ratioOptions(r).batchFaces) + double(res.report.maxUncontractibleFaces);
