@@ -77,9 +77,10 @@ struct SymmetricDistance {
 };
 
 // Default number of area samples for a mesh with that many faces: max(1,000,000, faces).
-// Sampling is stratified (below), so 1M samples already pin mean and RMS to well under 1% (see the
-// seed-variation figures in the README of the evaluation tools); one sample per face on large
-// meshes keeps every region of a large mesh represented.
+// Sampling is stratified (below), so this pins mean and RMS far below 1%: on a 1M-face torus
+// against a 110k-face one, changing the seed moved mean and RMS by <= 6e-4 (relative) at 1M
+// samples, and by <= 4e-4 at 20M faces / 20M samples. One sample per face on large meshes keeps
+// every region of the surface represented, and the cost linear in the mesh size.
 size_t defaultSampleCount(size_t faces);
 
 // Samples `samples` points on A (0: defaultSampleCount) and measures their distance to B.
