@@ -131,7 +131,7 @@ private:
 
 } // namespace
 
-Result simplifyFile(const std::string& path, const Options& opt, Progress* progress)
+static Result simplifyFileUnprefixed(const std::string& path, const Options& opt, Progress* progress)
 {
     Stopwatch clock;
     checkOptions(opt);
@@ -230,6 +230,18 @@ Result simplifyFile(const std::string& path, const Options& opt, Progress* progr
     rep.peakRssMb = peakRssMb();
     return result;
 
+}
+
+Result simplifyFile(const std::string& path, const Options& opt, Progress* progress)
+{
+    // Every input error names the file, whichever stage found it.
+    try {
+        return simplifyFileUnprefixed(path, opt, progress);
+    } catch (const InputError& e) {
+        const std::string what = e.what();
+        if (what.compare(0, path.size() + 1, path + ":") == 0) throw;
+        throw InputError(path + ": " + what);
+    }
 }
 
 } // namespace vdb_isosimp

@@ -142,7 +142,7 @@ TEST(Cli, NanVoxel)
     for (int i = 0; i < 10; ++i) g->tree().setValue(openvdb::Coord(i, 0, 0), 1.0f);
     g->tree().setValue(openvdb::Coord(3, 0, 0), std::numeric_limits<float>::quiet_NaN());
     openvdb::io::File(d + "/nan.vdb").write({g});
-    expectCleanFailure(run(d, "nan.vdb --iso 0.5 -o out.ply"), 1, "voxel [3, 0, 0] of grid 'density' is nan", d);
+    expectCleanFailure(run(d, "nan.vdb --iso 0.5 -o out.ply"), 1, "nan.vdb: voxel [3, 0, 0] of grid 'density' is nan", d);
 }
 
 TEST(Cli, RatioOutOfRange)
