@@ -32,11 +32,13 @@ const ScalarType kAllTypes[] = {ScalarType::U8, ScalarType::I8, ScalarType::U16,
                                 ScalarType::U32, ScalarType::I32, ScalarType::F32, ScalarType::F64};
 
 /// The test volume: background (0) for x >= 16, the constant 42 in the first 8x8x8 block (one whole
-/// leaf), elsewhere a pattern spanning the type's range that also hits 0 now and then.
+/// leaf), the constant 7 in the last y row (partial leaves, which must not grow into tiles), elsewhere
+/// a pattern spanning the type's range that also hits 0 now and then.
 double formula(int x, int y, int z, ScalarType t)
 {
     if (x >= 16) return 0;
     if (x < 8 && y < 8 && z < 8) return 42;
+    if (y == NY - 1) return 7;
     const int p = (x * 3 + y * 5 + z * 7) % 97;  // 0..96
     switch (t) {
     case ScalarType::U8: return p + (p > 50 ? 150 : 0);
