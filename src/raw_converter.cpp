@@ -70,16 +70,64 @@ struct SlabGeometry {
     int leavesX;  // ceil(X/8)
 };
 
-/// Converts the voxels of one 8x8x8 block of a slab. `Plain`: fog volume, no scaling, no clamping,
-/// zero tolerance (the common case, reduced to a min/max scan).
-template <typename T, bool Swap, bool Plain>
-void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int by, const ValueRules& r, LeafResult& out)
+/// Byte offset of voxel (x0, y, z) of a slab.
+inline uint64_t rowOffset(const SlabGeometry& g, int x0, int y, int z, std::size_t size)
+{
+    return ((static_cast<uint64_t>(z) * g.Y + static_cast<uint64_t>(y)) * g.X + static_cast<uint64_t>(x0)) * size;
+}
+
+/// The common case (fog volume, no scaling, no clamping, zero tolerance): a leaf is uniform when
+/// every stored value has the same bytes as its first one, which a row-wise memcmp decides without
+/// converting anything; only mixed leaves are converted, straight into the leaf buffer.
+template <typename T, bool Swap>
+void convertLeafPlain(const unsigned char* slab, const SlabGeometry& g, int bx, int by, const ValueRules& r, LeafResult& out)
 {
     const int x0 = bx * kLeafDim, y0 = by * kLeafDim;
     const int nx = static_cast<int>(std::min<uint64_t>(kLeafDim, g.X - static_cast<uint64_t>(x0)));
     const int ny = static_cast<int>(std::min<uint64_t>(kLeafDim, g.Y - static_cast<uint64_t>(y0)));
     const bool whole = nx == kLeafDim && ny == kLeafDim && g.nz == kLeafDim;
-    constexpr bool kFloat = std::is_floating_point_v<T>;
+    const unsigned char* first = slab + rowOffset(g, x0, y0, 0, sizeof(T));
+    unsigned char pattern[kLeafDim * sizeof(T)];
+    for (int x = 0; x < kLeafDim; ++x) std::memcpy(pattern + x * sizeof(T), first, sizeof(T));
+    bool uniform = true;
+    for (int z = 0; z < g.nz && uniform; ++z)
+        for (int y = 0; y < ny && uniform; ++y) {
+            const unsigned char* row = slab + rowOffset(g, x0, y0 + y, z, sizeof(T));
+            uniform = whole ? std::memcmp(row, pattern, sizeof pattern) == 0 : std::memcmp(row, pattern, nx * sizeof(T)) == 0;
+        }
+    const float bg = r.background;
+    if (uniform) {
+        const float v = static_cast<float>(loadValue<T, Swap>(first));
+        if (v == bg) { out.kind = LeafKind::Empty; return; }
+        if (whole && v == v) { out.kind = LeafKind::ActiveTile; out.value = v; return; }
+    }
+    out.kind = LeafKind::Leaf;
+    out.leaf = std::make_unique<LeafT>(openvdb::Coord(x0, y0, g.z0), bg, false);
+    float* data = out.leaf->buffer().data();
+    auto& mask = out.leaf->getValueMask();
+    for (int z = 0; z < g.nz; ++z)
+        for (int y = 0; y < ny; ++y) {
+            const unsigned char* row = slab + rowOffset(g, x0, y0 + y, z, sizeof(T));
+            const int base = (y << 3) | z;
+            for (int x = 0; x < nx; ++x) {
+                const float v = static_cast<float>(loadValue<T, Swap>(row + x * sizeof(T)));
+                const int i = (x << 6) | base;
+                if (v != bg) {  // NaN included: kept, active
+                    data[i] = v;
+                    mask.setOn(static_cast<openvdb::Index>(i));
+                }
+            }
+        }
+}
+
+/// Any rules: scaling, clamping, tolerance, level sets.
+template <typename T, bool Swap>
+void convertLeafGeneral(const unsigned char* slab, const SlabGeometry& g, int bx, int by, const ValueRules& r, LeafResult& out)
+{
+    const int x0 = bx * kLeafDim, y0 = by * kLeafDim;
+    const int nx = static_cast<int>(std::min<uint64_t>(kLeafDim, g.X - static_cast<uint64_t>(x0)));
+    const int ny = static_cast<int>(std::min<uint64_t>(kLeafDim, g.Y - static_cast<uint64_t>(y0)));
+    const bool whole = nx == kLeafDim && ny == kLeafDim && g.nz == kLeafDim;
 
     float vals[LeafT::SIZE];
     float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
@@ -88,45 +136,28 @@ void convertLeaf(const unsigned char* slab, const SlabGeometry& g, int bx, int b
     const double bg = r.background, tol = r.tolerance;
     for (int z = 0; z < g.nz; ++z) {
         for (int y = 0; y < ny; ++y) {
-            const unsigned char* row = slab + ((static_cast<uint64_t>(z) * g.Y + static_cast<uint64_t>(y0 + y)) * g.X + static_cast<uint64_t>(x0)) * sizeof(T);
+            const unsigned char* row = slab + rowOffset(g, x0, y0 + y, z, sizeof(T));
             float* dst = vals + ((y << 3) | z);
-            if constexpr (Plain) {
-                for (int x = 0; x < nx; ++x) {
-                    const float v = static_cast<float>(loadValue<T, Swap>(row + x * sizeof(T)));
-                    dst[x << 6] = v;
-                    if constexpr (kFloat) {
-                        if (v != v) { hasNaN = true; continue; }
-                    }
-                    vmin = std::min(vmin, v);
-                    vmax = std::max(vmax, v);
-                }
-            } else {
-                for (int x = 0; x < nx; ++x) {
-                    double d = static_cast<double>(loadValue<T, Swap>(row + x * sizeof(T)));
-                    if (r.scaled) d = d * r.scale + r.intercept;
-                    if (r.clamped) d = std::min(std::max(d, r.lo), r.hi);
-                    const float v = static_cast<float>(d);
-                    dst[x << 6] = v;
-                    if (v != v) { hasNaN = true; continue; }
-                    vmin = std::min(vmin, v);
-                    vmax = std::max(vmax, v);
-                    if (!r.levelSet) {
-                        nearBg += std::fabs(static_cast<double>(v) - bg) <= tol;
-                    } else {
-                        nearBg += static_cast<double>(v) >= bg - tol;
-                        inside += static_cast<double>(v) <= -bg + tol;
-                    }
+            for (int x = 0; x < nx; ++x) {
+                double d = static_cast<double>(loadValue<T, Swap>(row + x * sizeof(T)));
+                if (r.scaled) d = d * r.scale + r.intercept;
+                if (r.clamped) d = std::min(std::max(d, r.lo), r.hi);
+                const float v = static_cast<float>(d);
+                dst[x << 6] = v;
+                if (v != v) { hasNaN = true; continue; }
+                vmin = std::min(vmin, v);
+                vmax = std::max(vmax, v);
+                if (!r.levelSet) {
+                    nearBg += std::fabs(static_cast<double>(v) - bg) <= tol;
+                } else {
+                    nearBg += static_cast<double>(v) >= bg - tol;
+                    inside += static_cast<double>(v) <= -bg + tol;
                 }
             }
         }
     }
     const int count = nx * ny * g.nz;
-    if constexpr (Plain) {
-        if (!hasNaN && vmin == vmax) {
-            if (vmin == r.background) { out.kind = LeafKind::Empty; return; }
-            if (whole) { out.kind = LeafKind::ActiveTile; out.value = vmin; return; }
-        }
-    } else if (!hasNaN) {
+    if (!hasNaN) {
         if (nearBg == count) { out.kind = LeafKind::Empty; return; }
         if (whole && inside == count) { out.kind = LeafKind::InactiveTile; out.value = -r.background; return; }
         if (whole && static_cast<double>(vmax) - static_cast<double>(vmin) <= 2 * tol && nearBg == 0 && inside == 0) {
@@ -172,8 +203,8 @@ template <typename T>
 LeafFn pickFn(bool swap, bool plain)
 {
     if (sizeof(T) == 1) swap = false;
-    if (plain) return swap ? &convertLeaf<T, true, true> : &convertLeaf<T, false, true>;
-    return swap ? &convertLeaf<T, true, false> : &convertLeaf<T, false, false>;
+    if (plain) return swap ? &convertLeafPlain<T, true> : &convertLeafPlain<T, false>;
+    return swap ? &convertLeafGeneral<T, true> : &convertLeafGeneral<T, false>;
 }
 
 LeafFn leafFunction(ScalarType t, bool swap, bool plain)
