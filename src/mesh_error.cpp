@@ -218,7 +218,7 @@ double TriangleBVH::triangleDistanceSquared(uint32_t tri, const Vec& p, Vec& clo
     return dist2(p, closest);
 }
 
-TriangleBVH::Hit TriangleBVH::nearest(const Vec& p, uint32_t hint) const {
+TriangleBVH::Hit TriangleBVH::nearest(const Vec& p) const {
     auto boxDistance2 = [&p](const Node& nd) {
         double d2 = 0;
         for (size_t k = 0; k < 3; ++k) {
@@ -229,10 +229,6 @@ TriangleBVH::Hit TriangleBVH::nearest(const Vec& p, uint32_t hint) const {
     };
 
     Hit hit{std::numeric_limits<double>::infinity(), 0, {0, 0, 0}};
-    if (hint < mesh_.triangles.size()) {
-        hit.triangle = hint;
-        hit.distanceSquared = triangleDistanceSquared(hint, p, hit.point);
-    }
     // Depth-first, nearer child first; a stack entry keeps its box distance so it can be skipped
     // once a closer triangle has been found. Median splits keep the depth near log2(n / 4).
     struct Entry {
@@ -336,7 +332,6 @@ DistanceStats sampleDistance(const Mesh& A, const TriangleBVH& bvh, size_t sampl
     std::vector<Partial> partial(nChunks);
     tbb::parallel_for(size_t(0), nChunks, [&](size_t c) {
         Partial acc;
-        uint32_t hint = UINT32_MAX;
         double cumulative = chunkStart[c];
         const size_t end = std::min(F, (c + 1) * kSampleChunk);
         for (size_t f = c * kSampleChunk; f < end; ++f) {
@@ -353,10 +348,7 @@ DistanceStats sampleDistance(const Mesh& A, const TriangleBVH& bvh, size_t sampl
                 const double wa = 1 - s, wb = s * (1 - r), wc = s * r;
                 const Vec p{wa * a[0] + wb * b[0] + wc * cc[0], wa * a[1] + wb * b[1] + wc * cc[1],
                             wa * a[2] + wb * b[2] + wc * cc[2]};
-                // Consecutive samples are close on A, so the last answer is a good first guess.
-                const TriangleBVH::Hit hit = bvh.nearest(p, hint);
-                hint = hit.triangle;
-                const double d = std::sqrt(hit.distanceSquared);
+                const double d = std::sqrt(bvh.nearest(p).distanceSquared);
                 acc.sum += d;
                 acc.sum2 += d * d;
                 acc.max = std::max(acc.max, d);
@@ -387,12 +379,9 @@ DistanceStats sampleDistance(const Mesh& A, const TriangleBVH& bvh, size_t sampl
     std::vector<size_t> vcount(nVChunks, 0);
     tbb::parallel_for(size_t(0), nVChunks, [&](size_t c) {
         const size_t end = std::min(V, (c + 1) * kSampleChunk);
-        uint32_t hint = UINT32_MAX;
         for (size_t v = c * kSampleChunk; v < end; ++v) {
             if (!used[v]) continue;
-            const TriangleBVH::Hit hit = bvh.nearest(toDouble(A.points[v]), hint);
-            hint = hit.triangle;
-            vmax[c] = std::max(vmax[c], std::sqrt(hit.distanceSquared));
+            vmax[c] = std::max(vmax[c], std::sqrt(bvh.nearest(toDouble(A.points[v])).distanceSquared));
             ++vcount[c];
         }
     });

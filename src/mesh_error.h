@@ -36,9 +36,7 @@ public:
         std::array<double, 3> point; // closest point on that triangle
     };
     // Nearest triangle to p (exact: the pruning uses conservative boxes). Thread-safe.
-    // `hint`, if a valid triangle index, is measured first to start with a tight bound; it speeds
-    // up runs of nearby queries and never changes the returned distance.
-    Hit nearest(const std::array<double, 3>& p, uint32_t hint = UINT32_MAX) const;
+    Hit nearest(const std::array<double, 3>& p) const;
 
     size_t nodeCount() const { return nodes_.size(); }
     size_t memoryBytes() const;

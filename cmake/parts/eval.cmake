@@ -35,3 +35,21 @@ if(VDB_ISOSIMP_BUILD_TESTS)
   target_compile_options(test_eval PRIVATE ${VDB_ISOSIMP_WARNINGS})
   gtest_discover_tests(test_eval PROPERTIES LABELS eval TIMEOUT 300)
 endif()
+
+# The programs themselves: exit code and one-line message on a missing file, and a round trip on a
+# cube written as OFF (closed by mesh_stats, zero distance to itself by mesh_error, up to rounding
+# of the sample positions).
+if(VDB_ISOSIMP_BUILD_TOOLS AND VDB_ISOSIMP_BUILD_TESTS)
+  add_test(NAME eval.mesh_error_missing_file
+    COMMAND sh -c "out=$(\"$0\" /nonexistent/a.ply /nonexistent/b.ply 2>&1); rc=$?; echo \"$out\"; \
+[ $rc -eq 1 ] && [ \"$out\" = \"mesh_error: cannot open mesh file '/nonexistent/a.ply'\" ]"
+      $<TARGET_FILE:mesh_error>)
+  add_test(NAME eval.tools_on_cube
+    COMMAND sh -c "f=$(mktemp --suffix=.off) || exit 1; \
+printf 'OFF\\n8 12 0\\n0 0 0\\n1 0 0\\n1 1 0\\n0 1 0\\n0 0 1\\n1 0 1\\n1 1 1\\n0 1 1\\n\
+3 0 2 1\\n3 0 3 2\\n3 4 5 6\\n3 4 6 7\\n3 0 1 5\\n3 0 5 4\\n3 3 7 6\\n3 3 6 2\\n3 0 4 7\\n3 0 7 3\\n3 1 2 6\\n3 1 6 5\\n' > $f; \
+\"$0\" --json $f | tee /dev/stderr | grep -q '\"closed\": true' && \
+\"$1\" --json -n 1000 $f $f | tee /dev/stderr | grep -Eq '\"hausdorff\": (0|[0-9.]+e-(1[2-9]|[2-9][0-9])),'; rc=$?; rm -f $f; exit $rc"
+      $<TARGET_FILE:mesh_stats> $<TARGET_FILE:mesh_error>)
+  set_tests_properties(eval.mesh_error_missing_file eval.tools_on_cube PROPERTIES LABELS eval TIMEOUT 60)
+endif()
