@@ -45,7 +45,7 @@ void printJsonDirection(const char* name, const eval::DistanceStats& d, double d
 }
 
 void printDirection(const char* name, const eval::DistanceStats& d, double diag) {
-    std::printf("%-5s %14.6g %14.6g %14.6g   %10.5f%% %10.5f%% %10.5f%%   %zu\n", name, d.mean, d.rms, d.max,
+    std::printf("%-5s %14.6g %14.6g %14.6g   %10.4g%% %10.4g%% %10.4g%%   %zu\n", name, d.mean, d.rms, d.max,
                 100 * d.mean / diag, 100 * d.rms / diag, 100 * d.max / diag, d.samples);
 }
 
@@ -109,7 +109,7 @@ int main(int argc, char** argv) {
                         "rms/diag", "max/diag", "samples");
             printDirection("A->B", d.ab, diag);
             printDirection("B->A", d.ba, diag);
-            std::printf("Hausdorff distance (symmetric): %.6g (%.5f%% of A's bbox diagonal)\n", d.hausdorff,
+            std::printf("Hausdorff distance (symmetric): %.6g (%.4g%% of A's bbox diagonal)\n", d.hausdorff,
                         100 * d.hausdorff / diag);
             std::printf("seed %llu, %.2f s\n", static_cast<unsigned long long>(seed), seconds);
         }
