@@ -31,13 +31,14 @@ const std::array<uint64_t, 3> kDims{{NX, NY, NZ}};
 const ScalarType kAllTypes[] = {ScalarType::U8, ScalarType::I8, ScalarType::U16, ScalarType::I16,
                                 ScalarType::U32, ScalarType::I32, ScalarType::F32, ScalarType::F64};
 
-/// The test volume: background (0) for x >= 16, the constant 42 in the first 8x8x8 block (one whole
-/// leaf), the constant 7 in the last y row (partial leaves, which must not grow into tiles), elsewhere
+/// The test volume: background (0) for x >= 16 and in the whole leaf at (8,8,0), the constant 42 in
+/// the first 8x8x8 block (one whole leaf), the constant 7 in the last y row (partial leaves, which must not grow into tiles), elsewhere
 /// a pattern spanning the type's range that also hits 0 now and then.
 double formula(int x, int y, int z, ScalarType t)
 {
     if (x >= 16) return 0;
     if (x < 8 && y < 8 && z < 8) return 42;
+    if (x >= 8 && y >= 8 && y < 16 && z < 8) return 0;
     if (y == NY - 1) return 7;
     const int p = (x * 3 + y * 5 + z * 7) % 97;  // 0..96
     switch (t) {
@@ -399,6 +400,9 @@ TEST(RoundTrip, EveryTypeBothByteOrdersLibraryAndFile)
             EXPECT_EQ(grid->tree().probeConstLeaf(openvdb::Coord(0, 0, 0)), nullptr);
             EXPECT_TRUE(grid->tree().isValueOn(openvdb::Coord(3, 3, 3)));
             EXPECT_GE(stats.tileCount, 1u);
+            // The all-background leaf at (8,8,0) adds nothing.
+            EXPECT_EQ(grid->tree().probeConstLeaf(openvdb::Coord(8, 8, 0)), nullptr);
+            EXPECT_FALSE(grid->tree().isValueOn(openvdb::Coord(12, 12, 4)));
 
             const fs::path vdb = dir / (raw.stem().string() + ".vdb");
             convertRawToVdb(raw.string(), vdb.string(), rawOptions(t, bo));
