@@ -293,6 +293,39 @@ size_t Decimator::decimateTo(size_t targetFaces)
     return collapses;
 }
 
+bool Decimator::degenerate(uint32_t f) const
+{
+    // The same shape measure collapses are held to: slivers whose float output would have zero area count.
+    const auto& v = mFaces[f].v;
+    const V3 &p0 = mVerts[v[0]].p, &p1 = mVerts[v[1]].p, &p2 = mVerts[v[2]].p;
+    const V3 n = cross(sub(p1, p0), sub(p2, p0));
+    const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
+    return !(std::sqrt(dot(n, n)) > kMinShape * edges);
+}
+
+size_t Decimator::removeDegenerateFaces()
+{
+    size_t remaining = 0;
+    for (bool progress = true; progress;) {
+        progress = false;
+        remaining = 0;
+        for (uint32_t f = 0; f < mFaces.size(); ++f) {
+            if (!mFaces[f].alive || !degenerate(f)) continue;
+            const auto v = mFaces[f].v;
+            bool done = false;
+            for (int k = 0; k < 3 && !done; ++k) {
+                const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
+                if (!mVerts[a].final || !mVerts[b].final) continue;
+                Candidate c{0, a, b, mVerts[a].version, mVerts[b].version, mVerts[a].p};
+                done = collapse(c);
+            }
+            if (done) progress = true;
+            else ++remaining;
+        }
+    }
+    return remaining;
+}
+
 void Decimator::requeueAll()
 {
     mHeap.clear();

@@ -34,6 +34,10 @@ public:
     // domain; the count is returned so tests can check it).
     size_t finalizeRemaining();
 
+    // Collapses an edge of every zero-area face left over (coincident vertices where voxels sit exactly
+    // at the iso-value) when a legal collapse exists. Returns how many such faces remain.
+    size_t removeDegenerateFaces();
+
     // Requeues every contractible edge: edges refused earlier may have become legal since.
     void requeueAll();
 
@@ -78,6 +82,7 @@ private:
     void neighbours(uint32_t v, std::vector<uint32_t>& out) const;
     void push(uint32_t a, uint32_t b);
     bool collapse(const Candidate& c);
+    bool degenerate(uint32_t f) const;
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
 
     std::vector<Vertex> mVerts;

@@ -37,6 +37,7 @@ const std::array<McCase, 256>& mcTable();
 // once this block is integrated (see modifiability.h).
 struct BlockMesh {
     uint64_t blockIndex = 0;
+    double minValue = 0.0, maxValue = 0.0;  // range of the block's samples, for "no surface" messages
     std::vector<EdgeKey> keys;
     std::vector<std::array<double, 3>> positions;
     std::vector<uint8_t> finalAfterBlock;

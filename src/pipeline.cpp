@@ -101,6 +101,8 @@ public:
             }
         }
         mDec.setMaxNormalTurn(0.17);
+        // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
+        if (targetFaces < mFacesGenerated) mDec.removeDegenerateFaces();
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
@@ -164,8 +166,12 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
     // A mirroring transform reverses the winding; compensate so normals still point outward.
     const bool flip = info.indexToWorld.determinant() < 0;
 
+    // Range of the values sampled so far; voxel buffers are released as blocks finish, so the grid
+    // itself can no longer be asked once extraction has run.
+    std::array<double, 2> sampled{info.background, info.background};
+    bool released = false;
     auto noSurface = [&]() {
-        const auto range = vol->valueRange();
+        const auto range = released ? sampled : vol->valueRange();
         std::ostringstream s;
         s << path << ": no surface at iso-value " << cls.iso << " in grid '" << info.gridName
           << "' (values lie in [" << range[0] << ", " << range[1] << "])";
@@ -188,6 +194,7 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
         // Extract in parallel, integrate and decimate in order. The number of blocks in flight is
         // bounded, so memory is too; the in-order stage makes the output independent of threads.
         Integrator integ(opt, ratio, rep);
+        released = true;
         size_t next = 0, done = 0;
         const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
         tbb::parallel_pipeline(
@@ -204,12 +211,17 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
                         vol->sample(blocks[i], s);
                         auto m = std::make_shared<BlockMesh>();
                         m->blockIndex = i;
+                        const auto mm = std::minmax_element(s.values.begin(), s.values.end());
+                        m->minValue = *mm.first;
+                        m->maxValue = *mm.second;
                         extractBlock(s, cls, info.indexToWorld, flip, *m);
                         return m;
                     }) &
                 tbb::make_filter<std::shared_ptr<BlockMesh>, void>(
                     tbb::filter_mode::serial_in_order, [&](std::shared_ptr<BlockMesh> m) {
+                        sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         integ.add(*m);
+                        vol->releaseLeaf(blocks[m->blockIndex]);
                         ++done;
                         if (progress && (done % 256 == 0 || done == blocks.size()) &&
                             !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))

@@ -50,6 +50,15 @@ public:
         }
     }
 
+    void releaseLeaf(const std::array<int32_t, 3>& o) override
+    {
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        if (LeafT* leaf = mGrid->tree().probeLeaf(openvdb::Coord(o[0], o[1], o[2]))) {
+            typename LeafT::Buffer empty(openvdb::PartialCreate(), mGrid->background());
+            leaf->swap(empty);  // `empty` now owns the voxels and frees them here
+        }
+    }
+
     std::array<double, 2> valueRange() const override
     {
         double lo = double(mGrid->background()), hi = lo;
@@ -92,6 +101,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     openvdb::io::File file(path);
     openvdb::GridPtrVecPtr metas;
     try {
+        file.setCopyMaxBytes(0);  // read the file in place rather than through a private copy
         file.open(/*delayLoad=*/true);
         metas = file.readAllGridMetadata();
     } catch (const std::exception& e) {

@@ -36,6 +36,11 @@ public:
     virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf.
     virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
+    // Frees the voxel buffer of the leaf whose origin is `blockOrigin`, if any. Leaf L is last sampled
+    // by block L itself (blocks after it in z/y/x order only sample higher voxels), so once block L is
+    // integrated its voxels are dead: live voxel data stays about one layer of blocks. Call from the
+    // in-order stage only; no block after L reads L, so concurrent extraction is unaffected.
+    virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     // Smallest and largest value stored in the grid (voxels, tiles and background).
     virtual std::array<double, 2> valueRange() const = 0;
 

@@ -168,8 +168,9 @@ TEST(Pipeline, ClosedManifoldOutwardAtEveryRatio)
             const double target = r * double(res.report.facesFull);
             // The noise surface has 360 components and ~190 handles: at R = 0.01 its topology alone
             // needs more faces than R*F, so the face target is checked there only down to 0.05.
-            if (file == sphereFile() || r >= 0.05)
+            if (file == sphereFile() || r >= 0.05) {
                 EXPECT_LE(std::abs(double(res.report.facesOut) - target), 0.02 * target) << what << " faces " << res.report.facesOut;
+            }
             EXPECT_EQ(res.report.facesOut, res.mesh.triangles.size());
             // Memory: the intermediate mesh never exceeds R*F + B + uncontractible faces (+1%).
             const double bound = target + double(ratioOptions(r).batchFaces) + double(res.report.maxUncontractibleFaces);
