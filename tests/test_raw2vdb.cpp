@@ -870,7 +870,7 @@ TEST(Pipeline, Raw2vdbOutputMeshesLikeAnInMemoryGrid)
         const double u = (x - 27.5) / 24.0, v = (y - 23.5) / 20.0, w = (z - 19.5) / 17.0;
         const double r = std::sqrt(u * u + v * v + w * w);
         if (r > 1.0) return 0;
-        double hu = 1000 + 40 * std::sin(x * 0.3) * std::cos(y * 0.2);
+        double hu = r < 0.52 ? 1000 : 1000 + 40 * std::sin(x * 0.3) * std::cos(y * 0.2);  // constant core: tiles
         if (r > 0.55 && r < 0.7) hu = 1800 + 200 * (r - 0.55) / 0.15;
         return std::floor(hu);
     };
@@ -880,7 +880,10 @@ TEST(Pipeline, Raw2vdbOutputMeshesLikeAnInMemoryGrid)
     auto r = raw2vdb({(dir / "ct.nhdr").string(), "-o", (dir / "converted.vdb").string()}, dir.path);
     ASSERT_EQ(r.code, 0) << r.err;
 
-    openvdb::initialize();
+    auto converted = readVdb(dir / "converted.vdb");
+    ASSERT_TRUE(converted);
+    EXPECT_GT(converted->tree().activeTileCount(), 0u);  // the converter made tiles, the in-memory grid has none
+
     auto grid = openvdb::FloatGrid::create(0.0f);
     openvdb::math::Mat4d m = openvdb::math::Mat4d::identity();
     m[0][0] = 0.7;
@@ -899,7 +902,8 @@ TEST(Pipeline, Raw2vdbOutputMeshesLikeAnInMemoryGrid)
                 if (ct(x, y, z) != 0) acc.setValue({x, y, z}, float(ct(x, y, z)));
     openvdb::io::File((dir / "memory.vdb").string()).write({grid});
 
-    for (const char* iso : {"500", "1500"}) {
+    EXPECT_EQ(grid->activeVoxelCount(), converted->activeVoxelCount());
+    for (const char* iso : {"500", "1010", "1500"}) {
         SCOPED_TRACE(iso);
         r = runProgram(VDB_ISOSIMP_EXE, {(dir / "converted.vdb").string(), "--iso", iso, "-o", (dir / "a.ply").string()}, dir.path);
         ASSERT_EQ(r.code, 0) << r.err;
