@@ -137,9 +137,10 @@ int main(int argc, char** argv)
             lastDraw = now;
             const int width = 40;
             const int fill = static_cast<int>(width * done / std::max<uint64_t>(total, 1));
-            std::fprintf(stderr, "\rraw2vdb: [%s%s] %3d%%  slab %llu/%llu", std::string(fill, '#').c_str(),
+            std::fprintf(stderr, "\rraw2vdb: [%s%s] %3d%%  slab %llu/%llu%s", std::string(fill, '#').c_str(),
                          std::string(width - fill, '-').c_str(), static_cast<int>(100 * done / std::max<uint64_t>(total, 1)),
-                         static_cast<unsigned long long>(done), static_cast<unsigned long long>(total));
+                         static_cast<unsigned long long>(done), static_cast<unsigned long long>(total),
+                         done == total ? "  writing..." : "");
             std::fflush(stderr);
         };
     }
@@ -149,7 +150,7 @@ int main(int argc, char** argv)
         if (bar) std::fprintf(stderr, "\r\033[K");
         if (!quiet) {
             const auto& d = s.info.dims;
-            std::printf("raw2vdb: %s -> %s: %llux%llux%llu %s (%s, %s), %llu active voxels, %llu leaves, %llu tiles, %.2f s, peak %s\n",
+            std::printf("raw2vdb: %s -> %s: %llux%llux%llu %s (%s, %s encoding), %llu active voxels, %llu leaves, %llu tiles, %.2f s, peak %s\n",
                         input.c_str(), output.c_str(), static_cast<unsigned long long>(d[0]), static_cast<unsigned long long>(d[1]),
                         static_cast<unsigned long long>(d[2]), scalarName(s.info.type), formatName(s.info.format),
                         encodingName(s.info.encoding), static_cast<unsigned long long>(s.activeVoxels),
