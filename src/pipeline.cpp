@@ -118,8 +118,11 @@ private:
 
     void decimate(uint64_t target)
     {
-        mRep.maxUncontractibleFaces = std::max<uint64_t>(mRep.maxUncontractibleFaces, mDec.uncontractibleFaces());
+        DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target};
+        mRep.maxUncontractibleFaces = std::max<uint64_t>(mRep.maxUncontractibleFaces, rec.uncontractible);
         mDec.decimateTo(target);
+        rec.facesAfter = mDec.faceCount();
+        mRep.trace.push_back(rec);
         ++mRep.decimations;
     }
 

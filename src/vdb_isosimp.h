@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "mesh.h"
 
@@ -32,6 +33,14 @@ struct Options {
     int threads = 0;
 };
 
+// One decimation pass, for plots of the intermediate mesh (paper, figures 5 and 9).
+struct DecimationRecord {
+    uint64_t facesGenerated = 0;   // F_g: faces extracted so far
+    uint64_t facesBefore = 0, facesAfter = 0;
+    uint64_t uncontractible = 0;   // F_u before the pass
+    uint64_t target = 0;           // F_t
+};
+
 // What a run did; `--report` writes it as JSON.
 struct Report {
     std::string file, grid, valueType, gridClass;
@@ -48,6 +57,7 @@ struct Report {
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     double seconds = 0.0;
     double peakRssMb = 0.0;
+    std::vector<DecimationRecord> trace;
 };
 
 // Progress and cancellation, called from the in-order stage (never concurrently).

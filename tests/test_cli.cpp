@@ -185,6 +185,14 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     const auto fo = json.find("\"faces_out\": ");
     const std::string faces = json.substr(fo + 13, json.find(',', fo) - fo - 13);
     EXPECT_NE(ply.find("element face " + faces + "\n"), std::string::npos);
+    // --trace: a header and one row per decimation the report counts.
+    ASSERT_EQ(run(d, "sphere.vdb -r 0.1 -b 1000 -q --trace trace.csv --report r2.json -o t.ply").code, 0);
+    const std::string csv = slurp(d + "/trace.csv"), r2 = slurp(d + "/r2.json");
+    const auto dp = r2.find("\"decimations\": ");
+    const long decimations = std::stol(r2.substr(dp + 16));
+    EXPECT_GT(decimations, 2);
+    EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), decimations + 1);
+    EXPECT_EQ(csv.rfind("decimation,faces_generated,faces_before,faces_after,uncontractible,target\n", 0), 0u);
     // --quiet prints nothing on success.
     EXPECT_EQ(run(d, "sphere.vdb -q -o q.ply").err, "");
 }
@@ -209,6 +217,6 @@ TEST(Cli, HelpExplainsEveryOption)
     const std::string cmd = std::string("'") + VDB_ISOSIMP_EXE + "' --help > '" + d + "/help.txt'";
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     const std::string help = slurp(d + "/help.txt");
-    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--quiet"})
+    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet"})
         EXPECT_NE(help.find(opt), std::string::npos) << opt;
 }

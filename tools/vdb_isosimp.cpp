@@ -89,7 +89,19 @@ std::string reportJson(const Report& r, const std::string& output, const Options
     return j.str();
 }
 
-// Text files (the report) also go through a temporary file and a rename.
+std::string traceCsv(const Report& r)
+{
+    std::ostringstream c;
+    c << "decimation,faces_generated,faces_before,faces_after,uncontractible,target\n";
+    for (size_t i = 0; i < r.trace.size(); ++i) {
+        const DecimationRecord& d = r.trace[i];
+        c << i + 1 << ',' << d.facesGenerated << ',' << d.facesBefore << ',' << d.facesAfter << ','
+          << d.uncontractible << ',' << d.target << '\n';
+    }
+    return c.str();
+}
+
+// Text files (the report, the trace) also go through a temporary file and a rename.
 void writeText(const std::string& path, const std::string& text)
 {
     const std::string tmp = path + ".tmp" + std::to_string(::getpid());
@@ -126,7 +138,7 @@ int main(int argc, char** argv)
                  "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
                  "Output: binary PLY in world space, triangles counter-clockwise seen from outside.\n"
                  "Exit codes: 0 done, 1 bad input or output, 2 bad usage, 3 no surface at the iso-value."};
-    std::string input, output, reportPath;
+    std::string input, output, reportPath, tracePath;
     Options opt;
     double iso = 0.0;
     bool quiet = false;
@@ -152,6 +164,9 @@ int main(int argc, char** argv)
         ->default_val(opt.threads)
         ->check(CLI::Range(0, 1024));
     app.add_option("--report", reportPath, "Also write a JSON report (faces, decimations, memory, time) to this file");
+    app.add_option("--trace", tracePath,
+                   "Also write one CSV row per decimation: decimation,faces_generated,faces_before,faces_after,\n"
+                   "uncontractible,target (for plots of the intermediate mesh size)");
     app.add_flag("-q,--quiet", quiet, "Print errors only (no progress bar, no summary)");
 
     try {
@@ -180,6 +195,7 @@ int main(int argc, char** argv)
                          r.gridClass.c_str(), r.grid.c_str(), r.iso);
         writeMesh(res.mesh, output, "vdb_isosimp grid " + r.grid);
         if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
+        if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
         if (!quiet)
             std::fprintf(stderr, "vdb_isosimp: %s: %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
                          input.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
