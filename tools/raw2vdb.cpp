@@ -6,7 +6,9 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -48,6 +50,16 @@ std::vector<T> parseList(const std::string& option, const std::string& text, std
     }
     if (out.size() != n) throw UsageError(option + ": expected " + std::to_string(n) + " comma-separated numbers, got '" + text + "'");
     return out;
+}
+
+// Interrupted (Ctrl-C, kill): remove the temporary output (convertRawToVdb writes OUT.tmp.<pid>).
+char gTempPath[4096];
+
+extern "C" void onSignal(int sig)
+{
+    if (gTempPath[0]) ::unlink(gTempPath);
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
 }
 
 std::string mib(uint64_t bytes)
@@ -145,6 +157,11 @@ int main(int argc, char** argv)
         };
     }
 
+    const std::string tempPath = output + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+    if (tempPath.size() < sizeof gTempPath) {
+        std::memcpy(gTempPath, tempPath.c_str(), tempPath.size() + 1);
+        for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onSignal);
+    }
     try {
         const RawConvertStats s = convertRawToVdb(input, output, opt);
         if (bar) std::fprintf(stderr, "\r\033[K");
