@@ -189,7 +189,7 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     ASSERT_EQ(run(d, "sphere.vdb -r 0.1 -b 1000 -q --trace trace.csv --report r2.json -o t.ply").code, 0);
     const std::string csv = slurp(d + "/trace.csv"), r2 = slurp(d + "/r2.json");
     const auto dp = r2.find("\"decimations\": ");
-    const long decimations = std::stol(r2.substr(dp + 16));
+    const long decimations = std::stol(r2.substr(dp + 15));
     EXPECT_GT(decimations, 2);
     EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), decimations + 1);
     EXPECT_EQ(csv.rfind("decimation,faces_generated,faces_before,faces_after,uncontractible,target\n", 0), 0u);
