@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 namespace vdb_isosimp {
 
@@ -91,26 +92,33 @@ void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out) const
     out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
-void Decimator::push(uint32_t a, uint32_t b)
+std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost) const
 {
     const Vertex& va = mVerts[a];
     const Vertex& vb = mVerts[b];
     Quadric q = va.q;
     q += vb.q;
-    Candidate c{0, a, b, va.version, vb.version, {}};
-    if (!q.optimum(c.p)) {
+    V3 p;
+    if (!q.optimum(p)) {
         // Ill-conditioned (flat or straight regions): best of the ends and the midpoint.
         const V3 mid{(va.p[0] + vb.p[0]) / 2, (va.p[1] + vb.p[1]) / 2, (va.p[2] + vb.p[2]) / 2};
         const V3 options[3] = {va.p, vb.p, mid};
         double best = q.error(options[0]);
-        c.p = options[0];
+        p = options[0];
         for (int i = 1; i < 3; ++i) {
             const double e = q.error(options[i]);
-            if (e < best) { best = e; c.p = options[i]; }
+            if (e < best) { best = e; p = options[i]; }
         }
     }
-    c.cost = std::max(0.0, q.error(c.p));
-    mHeap.push_back(c);
+    if (cost) *cost = std::max(0.0, q.error(p));
+    return p;
+}
+
+void Decimator::push(uint32_t a, uint32_t b)
+{
+    double cost;
+    placement(a, b, &cost);
+    mHeap.push_back({float(cost), a, b, mVerts[a].version, mVerts[b].version});
     std::push_heap(mHeap.begin(), mHeap.end(), [](const Candidate& x, const Candidate& y) { return later(x, y); });
 }
 
@@ -234,7 +242,7 @@ bool Decimator::collapse(const Candidate& c)
     // The optimum first; when it would fold or degenerate a face, the ends and the midpoint.
     const V3& pa = mVerts[a].p;
     const V3& pb = mVerts[b].p;
-    const V3 places[4] = {c.p, pa, pb, {(pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2, (pa[2] + pb[2]) / 2}};
+    const V3 places[4] = {placement(a, b, nullptr), pa, pb, {(pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2, (pa[2] + pb[2]) / 2}};
     int place = 0;
     while (place < 4 && !(facesStayValid(a, b, places[place]) && facesStayValid(b, a, places[place]))) ++place;
     if (place == 4) return false;
@@ -261,9 +269,11 @@ bool Decimator::collapse(const Candidate& c)
     vk.p = target;
     vk.q += vg.q;
     ++vk.version;
-    neighbours(keep, mScratchA);
-    for (uint32_t n : mScratchA)
-        if (mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
+    // The survivor's ring is the union of both rings, without the two ends.
+    mScratchC.clear();
+    std::set_union(mScratchA.begin(), mScratchA.end(), mScratchB.begin(), mScratchB.end(), std::back_inserter(mScratchC));
+    for (uint32_t n : mScratchC)
+        if (n != keep && n != gone && mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
     return true;
 }
 
@@ -316,7 +326,7 @@ size_t Decimator::removeDegenerateFaces()
             for (int k = 0; k < 3 && !done; ++k) {
                 const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
                 if (!mVerts[a].final || !mVerts[b].final) continue;
-                Candidate c{0, a, b, mVerts[a].version, mVerts[b].version, mVerts[a].p};
+                const Candidate c{0.0f, a, b, mVerts[a].version, mVerts[b].version};
                 done = collapse(c);
             }
             if (done) progress = true;

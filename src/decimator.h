@@ -69,10 +69,11 @@ private:
         uint8_t nonFinal = 0;  // how many of v are not final yet; > 0 makes the face uncontractible
         bool alive = false;
     };
+    // A queued edge: 20 bytes, so the heap stays cache-friendly; the placement is recomputed when the
+    // entry is popped (the quadrics are unchanged while both versions match).
     struct Candidate {
-        double cost;
+        float cost;
         uint32_t a, b, versionA, versionB;
-        std::array<double, 3> p;
     };
 
     uint32_t newVertex(const std::array<double, 3>& p);
@@ -80,6 +81,7 @@ private:
     void killFace(uint32_t f);
     void finalize(uint32_t v);
     void neighbours(uint32_t v, std::vector<uint32_t>& out) const;
+    std::array<double, 3> placement(uint32_t a, uint32_t b, double* cost) const;
     void push(uint32_t a, uint32_t b);
     bool collapse(const Candidate& c);
     bool degenerate(uint32_t f) const;
@@ -93,7 +95,7 @@ private:
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0;
     double mMinNormalCos = 0.17;
-    std::vector<uint32_t> mScratchA, mScratchB;
+    std::vector<uint32_t> mScratchA, mScratchB, mScratchC;
 };
 
 } // namespace vdb_isosimp
