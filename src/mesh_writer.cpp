@@ -2,9 +2,14 @@
 
 #include "errors.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -12,6 +17,8 @@
 namespace vdb_isosimp {
 
 namespace {
+
+constexpr const char* kUnits = "units: world units of the grid transform";
 
 bool hostIsLittleEndian()
 {
@@ -31,46 +38,336 @@ std::string extensionOf(const std::string& path)
     return e;
 }
 
-void writePly(const Mesh& mesh, std::FILE* f, const std::string& comment)
+// Header text must stay on one line (PLY comments, OBJ comments and names are line-based).
+std::string oneLine(std::string s)
 {
-    std::string header = "ply\nformat binary_little_endian 1.0\n";
-    if (!comment.empty()) header += "comment " + comment + "\n";
-    header += "element vertex " + std::to_string(mesh.points.size()) +
-              "\nproperty float x\nproperty float y\nproperty float z\n"
-              "element face " + std::to_string(mesh.triangles.size()) +
-              "\nproperty list uchar int vertex_indices\nend_header\n";
-    std::fwrite(header.data(), 1, header.size(), f);
-    if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the PLY writer");
-    std::fwrite(mesh.points.data(), sizeof(float) * 3, mesh.points.size(), f);
-    // 13 bytes per face; write through a buffer instead of one fwrite per face.
-    std::vector<unsigned char> buf;
-    buf.reserve(13 * 4096);
-    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
-        buf.push_back(3);
-        const auto& t = mesh.triangles[i];
-        const int32_t idx[3] = {int32_t(t[0]), int32_t(t[1]), int32_t(t[2])};
-        const auto* p = reinterpret_cast<const unsigned char*>(idx);
-        buf.insert(buf.end(), p, p + 12);
-        if (buf.size() >= 13 * 4096) {
-            std::fwrite(buf.data(), 1, buf.size(), f);
-            buf.clear();
+    for (char& c : s)
+        if (c == '\n' || c == '\r' || c == '\0') c = ' ';
+    return s;
+}
+
+std::string jsonString(const std::string& s)
+{
+    std::string o = "\"";
+    for (char c : s) {
+        if (c == '"' || c == '\\') {
+            o += '\\';
+            o += c;
+        } else if (static_cast<unsigned char>(c) < 0x20) {
+            char b[8];
+            std::snprintf(b, sizeof b, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
+            o += b;
+        } else {
+            o += c;
         }
     }
-    std::fwrite(buf.data(), 1, buf.size(), f);
+    return o + "\"";
+}
+
+// %.9g: shortest form that still reads back as the same float.
+void appendFloat(std::string& s, float v)
+{
+    char b[32];
+    const int n = std::snprintf(b, sizeof b, "%.9g", double(v));
+    s.append(b, size_t(n));
+}
+
+// Buffered writes into the temporary file; stream errors surface at the end (ferror/fflush/fclose).
+class Out {
+public:
+    explicit Out(std::FILE* f) : mF(f) { mBuf.reserve(kChunk + 256); }
+    ~Out() { flush(); }
+    void bytes(const void* p, size_t n)
+    {
+        const auto* c = static_cast<const unsigned char*>(p);
+        if (n >= kChunk) {
+            flush();
+            std::fwrite(c, 1, n, mF);
+            return;
+        }
+        mBuf.insert(mBuf.end(), c, c + n);
+        if (mBuf.size() >= kChunk) flush();
+    }
+    void text(const std::string& s) { bytes(s.data(), s.size()); }
+    template <typename T> void pod(const T& v) { bytes(&v, sizeof v); }
+    void zeros(size_t n)
+    {
+        static const unsigned char z[4] = {0, 0, 0, 0};
+        bytes(z, n);
+    }
+    void flush()
+    {
+        if (!mBuf.empty()) std::fwrite(mBuf.data(), 1, mBuf.size(), mF);
+        mBuf.clear();
+    }
+
+private:
+    static constexpr size_t kChunk = 1 << 20;
+    std::FILE* mF;
+    std::vector<unsigned char> mBuf;
+};
+
+std::array<double, 3> faceNormal(const Mesh& m, const std::array<uint32_t, 3>& t)
+{
+    const auto& a = m.points[t[0]];
+    const auto& b = m.points[t[1]];
+    const auto& c = m.points[t[2]];
+    const double u[3] = {double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]};
+    const double v[3] = {double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]};
+    return {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+}
+
+void checkIndices(const Mesh& mesh)
+{
+    const size_t n = mesh.points.size();
+    for (const auto& t : mesh.triangles)
+        if (t[0] >= n || t[1] >= n || t[2] >= n) throw OutputError("mesh has a vertex index out of range");
+}
+
+void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
+{
+    std::vector<std::array<float, 3>> normals;
+    if (o.normals) normals = vertexNormals(mesh);
+    std::string h = "ply\nformat ";
+    h += ascii ? "ascii 1.0\n" : "binary_little_endian 1.0\n";
+    if (!o.comment.empty()) h += "comment " + oneLine(o.comment) + "\n";
+    h += std::string("comment ") + kUnits + "\n";
+    if (!o.objectName.empty()) h += "obj_info name " + oneLine(o.objectName) + "\n";
+    h += "element vertex " + std::to_string(mesh.points.size()) +
+         "\nproperty float x\nproperty float y\nproperty float z\n";
+    if (o.normals) h += "property float nx\nproperty float ny\nproperty float nz\n";
+    h += "element face " + std::to_string(mesh.triangles.size()) +
+         "\nproperty list uchar int vertex_indices\nend_header\n";
+    out.text(h);
+
+    if (ascii) {
+        std::string line;
+        for (size_t i = 0; i < mesh.points.size(); ++i) {
+            line.clear();
+            const auto& p = mesh.points[i];
+            for (int k = 0; k < 3; ++k) {
+                if (k) line += ' ';
+                appendFloat(line, p[size_t(k)]);
+            }
+            if (o.normals)
+                for (int k = 0; k < 3; ++k) {
+                    line += ' ';
+                    appendFloat(line, normals[i][size_t(k)]);
+                }
+            line += '\n';
+            out.text(line);
+        }
+        for (const auto& t : mesh.triangles)
+            out.text("3 " + std::to_string(t[0]) + ' ' + std::to_string(t[1]) + ' ' + std::to_string(t[2]) + '\n');
+        return;
+    }
+
+    if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
+    if (o.normals) {
+        for (size_t i = 0; i < mesh.points.size(); ++i) {
+            out.pod(mesh.points[i]);
+            out.pod(normals[i]);
+        }
+    } else {
+        out.bytes(mesh.points.data(), sizeof(float) * 3 * mesh.points.size());
+    }
+    for (const auto& t : mesh.triangles) {
+        unsigned char rec[13];
+        rec[0] = 3;
+        const int32_t idx[3] = {int32_t(t[0]), int32_t(t[1]), int32_t(t[2])};
+        std::memcpy(rec + 1, idx, 12);
+        out.bytes(rec, 13);
+    }
+}
+
+void writeObj(const Mesh& mesh, Out& out, const WriteOptions& o)
+{
+    std::vector<std::array<float, 3>> normals;
+    if (o.normals) normals = vertexNormals(mesh);
+    std::string h = "# vdb_isosimp\n";
+    if (!o.comment.empty()) h += "# " + oneLine(o.comment) + "\n";
+    h += std::string("# ") + kUnits + "\n";
+    h += "# " + std::to_string(mesh.points.size()) + " vertices, " + std::to_string(mesh.triangles.size()) +
+         " triangles\n";
+    h += "o " + oneLine(o.objectName.empty() ? std::string("vdb_isosimp") : o.objectName) + "\n";
+    out.text(h);
+    std::string line;
+    auto vec = [&](const char* tag, const std::array<float, 3>& v) {
+        line = tag;
+        for (int k = 0; k < 3; ++k) {
+            line += ' ';
+            appendFloat(line, v[size_t(k)]);
+        }
+        line += '\n';
+        out.text(line);
+    };
+    for (const auto& p : mesh.points) vec("v", p);
+    for (const auto& n : normals) vec("vn", n);
+    for (const auto& t : mesh.triangles) {
+        line = "f";
+        for (int k = 0; k < 3; ++k) {
+            const std::string i = std::to_string(uint64_t(t[size_t(k)]) + 1);  // OBJ counts from 1
+            line += ' ';
+            line += i;
+            if (o.normals) line += "//" + i;
+        }
+        line += '\n';
+        out.text(line);
+    }
+}
+
+void writeStl(const Mesh& mesh, Out& out, const WriteOptions& o)
+{
+    if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
+    if (mesh.triangles.size() > std::numeric_limits<uint32_t>::max())
+        throw OutputError("too many triangles for STL (at most 2^32 - 1)");
+    // 80 bytes of free text; must not start with "solid", or readers take the file for ASCII STL.
+    std::string h = "vdb_isosimp";
+    if (!o.objectName.empty()) h += " grid " + oneLine(o.objectName);
+    h += std::string("; ") + kUnits;
+    h.resize(80, ' ');
+    out.text(h);
+    out.pod(uint32_t(mesh.triangles.size()));
+    for (const auto& t : mesh.triangles) {
+        const auto n = faceNormal(mesh, t);
+        const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        float rec[12];
+        for (int k = 0; k < 3; ++k) rec[k] = len > 0 ? float(n[size_t(k)] / len) : 0.0f;
+        for (int c = 0; c < 3; ++c)
+            for (int k = 0; k < 3; ++k) rec[3 + 3 * c + k] = mesh.points[t[size_t(c)]][size_t(k)];
+        out.bytes(rec, sizeof rec);
+        out.pod(uint16_t(0));
+    }
+}
+
+void writeGlb(const Mesh& mesh, Out& out, const WriteOptions& o)
+{
+    if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
+    std::vector<std::array<float, 3>> normals;
+    if (o.normals) normals = vertexNormals(mesh);
+    const uint64_t nv = mesh.points.size(), nt = mesh.triangles.size();
+    const bool hasMesh = nv > 0 && nt > 0;  // glTF accessors must not be empty
+    const uint64_t posBytes = 12 * nv, nrmBytes = o.normals ? 12 * nv : 0, idxBytes = 12 * nt;
+    const uint64_t binBytes = hasMesh ? posBytes + nrmBytes + idxBytes : 0;  // multiple of 4 already
+
+    const std::string name = o.objectName.empty() ? std::string("vdb_isosimp") : o.objectName;
+    std::string j = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"vdb_isosimp\",\"extras\":{\"units\":" +
+                    jsonString(std::string(kUnits).substr(7)) +
+                    (o.comment.empty() ? std::string() : ",\"comment\":" + jsonString(o.comment)) + "}},";
+    j += "\"scene\":0,\"scenes\":[{\"name\":" + jsonString(name) + ",\"nodes\":[0]}],";
+    j += "\"nodes\":[{\"name\":" + jsonString(name) + (hasMesh ? ",\"mesh\":0" : "") + "}]";
+    if (hasMesh) {
+        std::array<float, 3> lo = mesh.points[0], hi = mesh.points[0];
+        for (const auto& p : mesh.points)
+            for (size_t k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], p[k]);
+                hi[k] = std::max(hi[k], p[k]);
+            }
+        auto vec3 = [](const std::array<float, 3>& v) {
+            std::string s = "[";
+            for (size_t k = 0; k < 3; ++k) {
+                if (k) s += ',';
+                appendFloat(s, v[k]);
+            }
+            return s + "]";
+        };
+        const std::string idxAccessor = o.normals ? "2" : "1";
+        j += ",\"meshes\":[{\"name\":" + jsonString(name) + ",\"primitives\":[{\"attributes\":{\"POSITION\":0" +
+             (o.normals ? std::string(",\"NORMAL\":1") : std::string()) + "},\"indices\":" + idxAccessor +
+             ",\"mode\":4}]}]";
+        j += ",\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":" + std::to_string(nv) +
+             ",\"type\":\"VEC3\",\"min\":" + vec3(lo) + ",\"max\":" + vec3(hi) + "}";
+        if (o.normals)
+            j += ",{\"bufferView\":1,\"componentType\":5126,\"count\":" + std::to_string(nv) + ",\"type\":\"VEC3\"}";
+        j += ",{\"bufferView\":" + idxAccessor + ",\"componentType\":5125,\"count\":" + std::to_string(3 * nt) +
+             ",\"type\":\"SCALAR\"}]";
+        j += ",\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":" + std::to_string(posBytes) +
+             ",\"target\":34962}";
+        if (o.normals)
+            j += ",{\"buffer\":0,\"byteOffset\":" + std::to_string(posBytes) +
+                 ",\"byteLength\":" + std::to_string(nrmBytes) + ",\"target\":34962}";
+        j += ",{\"buffer\":0,\"byteOffset\":" + std::to_string(posBytes + nrmBytes) +
+             ",\"byteLength\":" + std::to_string(idxBytes) + ",\"target\":34963}]";
+        j += ",\"buffers\":[{\"byteLength\":" + std::to_string(binBytes) + "}]";
+    }
+    j += "}";
+    j.resize((j.size() + 3) & ~size_t(3), ' ');  // JSON chunk padded with spaces
+
+    const uint64_t total = 12 + 8 + j.size() + (hasMesh ? 8 + binBytes : 0);
+    if (total > std::numeric_limits<uint32_t>::max())
+        throw OutputError("mesh too large for a .glb file (4 GiB at most); write .ply instead");
+    out.text("glTF");
+    out.pod(uint32_t(2));
+    out.pod(uint32_t(total));
+    out.pod(uint32_t(j.size()));
+    out.pod(uint32_t(0x4E4F534A));  // "JSON"
+    out.text(j);
+    if (!hasMesh) return;
+    out.pod(uint32_t(binBytes));
+    out.pod(uint32_t(0x004E4942));  // "BIN\0"
+    out.bytes(mesh.points.data(), posBytes);
+    if (o.normals) out.bytes(normals.data(), nrmBytes);
+    out.bytes(mesh.triangles.data(), idxBytes);
 }
 
 } // namespace
 
-void writeMesh(const Mesh& mesh, const std::string& path, const std::string& comment)
+MeshFormat formatForPath(const std::string& path, bool ascii)
 {
     const std::string ext = extensionOf(path);
-    if (ext != "ply")
-        throw OutputError(path + ": unsupported output format '." + ext + "' (supported: .ply)");
+    if (ascii && ext != "ply")
+        throw OutputError(path + ": ASCII output is only available for .ply (OBJ is always text; STL and "
+                                 "glTF are written binary)");
+    if (ext == "ply") return ascii ? MeshFormat::PlyAscii : MeshFormat::PlyBinary;
+    if (ext == "obj") return MeshFormat::Obj;
+    if (ext == "stl") return MeshFormat::StlBinary;
+    if (ext == "glb") return MeshFormat::Glb;
+    throw OutputError(path + ": unsupported output format '." + ext + "' (supported: .ply, .obj, .stl, .glb)");
+}
+
+std::vector<std::array<float, 3>> vertexNormals(const Mesh& mesh)
+{
+    checkIndices(mesh);
+    std::vector<std::array<double, 3>> sum(mesh.points.size(), {0.0, 0.0, 0.0});
+    for (const auto& t : mesh.triangles) {
+        const auto n = faceNormal(mesh, t);  // length = twice the area: area weighting for free
+        for (uint32_t v : t)
+            for (size_t k = 0; k < 3; ++k) sum[v][k] += n[k];
+    }
+    std::vector<std::array<float, 3>> out(mesh.points.size());
+    for (size_t i = 0; i < sum.size(); ++i) {
+        const auto& s = sum[i];
+        const double len = std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        out[i] = len > 0 ? std::array<float, 3>{float(s[0] / len), float(s[1] / len), float(s[2] / len)}
+                         : std::array<float, 3>{0.0f, 0.0f, 1.0f};
+    }
+    return out;
+}
+
+void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& options)
+{
+    const MeshFormat format = formatForPath(path, options.ascii);
+    try {
+        checkIndices(mesh);
+    } catch (const OutputError& e) {
+        throw OutputError(path + ": " + e.what());
+    }
     const std::string tmp = path + ".tmp" + std::to_string(::getpid());
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
     try {
-        writePly(mesh, f, comment);
+        Out out(f);
+        switch (format) {
+        case MeshFormat::PlyBinary: writePly(mesh, out, options, false); break;
+        case MeshFormat::PlyAscii: writePly(mesh, out, options, true); break;
+        case MeshFormat::Obj: writeObj(mesh, out, options); break;
+        case MeshFormat::StlBinary: writeStl(mesh, out, options); break;
+        case MeshFormat::Glb: writeGlb(mesh, out, options); break;
+        }
+    } catch (const OutputError& e) {
+        std::fclose(f);
+        std::remove(tmp.c_str());
+        throw OutputError(path + ": " + e.what());
     } catch (...) {
         std::fclose(f);
         std::remove(tmp.c_str());
@@ -88,6 +385,13 @@ void writeMesh(const Mesh& mesh, const std::string& path, const std::string& com
         std::remove(tmp.c_str());
         throw OutputError(path + ": cannot move the finished mesh into place (" + std::strerror(e) + ")");
     }
+}
+
+void writeMesh(const Mesh& mesh, const std::string& path, const std::string& comment)
+{
+    WriteOptions o;
+    o.comment = comment;
+    writeMesh(mesh, path, o);
 }
 
 } // namespace vdb_isosimp

@@ -136,15 +136,20 @@ int main(int argc, char** argv)
 {
     CLI::App app{"vdb_isosimp: extract the iso-surface of an OpenVDB grid with Marching Cubes and simplify it\n"
                  "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
-                 "Output: binary PLY in world space, triangles counter-clockwise seen from outside.\n"
+                 "Output: world space, triangles counter-clockwise seen from outside; the format follows the\n"
+                 "extension: .ply (binary; --ascii for text), .obj, .stl (binary), .glb (glTF 2.0 binary).\n"
                  "Exit codes: 0 done, 1 bad input or output, 2 bad usage, 3 no surface at the iso-value."};
     std::string input, output, reportPath, tracePath;
     Options opt;
     double iso = 0.0;
-    bool quiet = false;
+    bool quiet = false, normals = false, ascii = false;
 
     app.add_option("input", input, "Input .vdb file")->required();
-    app.add_option("-o,--output", output, "Output mesh (.ply). Default: <input stem>.ply in the current directory");
+    app.add_option("-o,--output", output,
+                   "Output mesh: .ply, .obj, .stl or .glb (by extension). Default: <input stem>.ply in the\n"
+                   "current directory");
+    app.add_flag("--normals", normals, "Add area-weighted vertex normals (PLY, OBJ, glTF; STL always has face normals)");
+    app.add_flag("--ascii", ascii, "Write ASCII PLY instead of binary (.ply only)");
     app.add_option("--grid", opt.gridName, "Grid to mesh. Default: the first float or double grid");
     auto* isoOpt = app.add_option("--iso", iso,
                                   "Iso-value. Default: 0 for level sets (inside: value < iso); for fog and other\n"
@@ -183,8 +188,17 @@ int main(int argc, char** argv)
         return 2;
     }
     if (output.empty()) output = stemOf(input) + ".ply";
+    if (ascii) {
+        try {
+            formatForPath(output, true);
+        } catch (const std::exception& e) {
+            std::cerr << "vdb_isosimp: --ascii: " << e.what() << " (see --help)\n";
+            return 2;
+        }
+    }
 
     try {
+        formatForPath(output, ascii);  // an unsupported extension fails before the long run
         probeWritable(output);
         TerminalProgress bar;
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
@@ -193,7 +207,12 @@ int main(int argc, char** argv)
         if (r.isoDefaulted && !quiet)
             std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
                          r.gridClass.c_str(), r.grid.c_str(), r.iso);
-        writeMesh(res.mesh, output, "vdb_isosimp grid " + r.grid);
+        WriteOptions wo;
+        wo.ascii = ascii;
+        wo.normals = normals;
+        wo.objectName = r.grid;
+        wo.comment = "vdb_isosimp grid " + r.grid;
+        writeMesh(res.mesh, output, wo);
         if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
         if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
         if (!quiet)
