@@ -6,13 +6,31 @@
 // block (8^3 cells, z/y/x order) and decimates it with quadric edge collapse while extracting, so the
 // full-resolution surface never exists in memory. The result is a closed, oriented (counter-clockwise
 // seen from outside) triangle mesh in world space.
+//
+// Also: simplifyGrid() for a grid already in memory, and variants of both that hand the final mesh to
+// a MeshSink in pieces instead of returning it. Write the mesh with writeMesh() (mesh_writer.h).
+// Installed as a CMake package: find_package(vdb_isosimp CONFIG), target vdb_isosimp::vdb_isosimp,
+// #include <vdb_isosimp/vdb_isosimp.h>.
 #pragma once
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include <openvdb/version.h>
+
+#include "errors.h"
 #include "mesh.h"
+#include "mesh_writer.h"
+
+namespace openvdb {
+OPENVDB_USE_VERSION_NAMESPACE
+namespace OPENVDB_VERSION_NAME {
+class GridBase;
+}
+} // namespace openvdb
 
 namespace vdb_isosimp {
 
@@ -76,5 +94,29 @@ struct Result {
 // Runs the whole pipeline on a file.
 // @throw InputError, EmptySurfaceError, Cancelled (errors.h); messages name the file and the problem.
 Result simplifyFile(const std::string& vdbPath, const Options& options, Progress* progress = nullptr);
+
+// Runs the whole pipeline on a grid in memory: a float or double grid with a linear transform (a
+// pyopenvdb grid, a grid built by the caller). The grid is only read, never changed. Options::gridName
+// is ignored; Report::file is empty and error messages name the grid instead of a file.
+// @throw InputError, EmptySurfaceError, Cancelled (errors.h).
+Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progress* progress = nullptr);
+
+// Receives the final mesh in pieces: begin() once with the finished report (vertsOut, facesOut give
+// the counts), then vertices() until all points are delivered, then triangles() (indices into the
+// points, counter-clockwise seen from outside), then end(). Each piece's storage is valid only during
+// the call. Lets a caller convert or upload the mesh without holding a second full copy of it.
+class MeshSink {
+public:
+    virtual ~MeshSink() = default;
+    virtual void begin(const Report& /*report*/) {}
+    virtual void vertices(const std::array<float, 3>* points, size_t count) = 0;
+    virtual void triangles(const std::array<uint32_t, 3>* triangles, size_t count) = 0;
+    virtual void end() {}
+};
+
+// Streaming variants: the mesh goes to `sink` (pieces of at most 65536 elements), the report is returned.
+Report simplifyFile(const std::string& vdbPath, const Options& options, MeshSink& sink, Progress* progress = nullptr);
+Report simplifyGrid(const openvdb::GridBase& grid, const Options& options, MeshSink& sink,
+                    Progress* progress = nullptr);
 
 } // namespace vdb_isosimp
