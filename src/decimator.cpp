@@ -166,6 +166,35 @@ void Decimator::addBlock(const BlockMesh& block)
         }
 }
 
+void Decimator::absorb(Decimator& other)
+{
+    std::vector<uint32_t> remap(other.mVerts.size(), UINT32_MAX);
+    // Open vertices first, in key order (hash-map order is not part of the output contract).
+    std::vector<std::pair<EdgeKey, uint32_t>> open(other.mOpen.begin(), other.mOpen.end());
+    std::sort(open.begin(), open.end());
+    for (const auto& [key, id] : open) {
+        auto it = mOpen.find(key);
+        if (it != mOpen.end()) {
+            remap[id] = it->second;
+            mVerts[it->second].q += other.mVerts[id].q;
+        } else {
+            remap[id] = newVertex(other.mVerts[id].p);
+            mVerts[remap[id]].q = other.mVerts[id].q;
+            mOpen.emplace(key, remap[id]);
+        }
+    }
+    for (uint32_t v = 0; v < other.mVerts.size(); ++v) {
+        const Vertex& ov = other.mVerts[v];
+        if (!ov.alive || remap[v] != UINT32_MAX) continue;
+        remap[v] = newVertex(ov.p);
+        mVerts[remap[v]].q = ov.q;
+        mVerts[remap[v]].final = ov.final;
+    }
+    for (const Face& f : other.mFaces)
+        if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+    other = Decimator{};
+}
+
 size_t Decimator::finalizeRemaining()
 {
     std::vector<uint32_t> open;
@@ -310,11 +339,46 @@ bool Decimator::degenerate(uint32_t f) const
     const V3 &p0 = mVerts[v[0]].p, &p1 = mVerts[v[1]].p, &p2 = mVerts[v[2]].p;
     const V3 n = cross(sub(p1, p0), sub(p2, p0));
     const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
-    return !(std::sqrt(dot(n, n)) > kMinShape * edges);
+    if (!(std::sqrt(dot(n, n)) > kMinShape * edges)) return true;
+    // The output is float: a tiny face can still collapse to zero area when rounded.
+    auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
+    const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
+    const V3 m = cross(sub(q1, q0), sub(q2, q0));
+    return dot(m, m) == 0.0;
+}
+
+bool Decimator::dropFlatComponent(uint32_t seed)
+{
+    // Only tiny closed components (a tetrahedron of vertices a hair apart, where one voxel sits at
+    // the iso-value) can be all flat and beyond any legal collapse; look no further than 16 faces.
+    std::vector<uint32_t> faces{seed}, verts;
+    for (size_t i = 0; i < faces.size(); ++i) {
+        if (!degenerate(faces[i])) return false;
+        for (uint32_t v : mFaces[faces[i]].v) {
+            if (std::find(verts.begin(), verts.end(), v) == verts.end()) verts.push_back(v);
+            for (uint32_t g : mVerts[v].faces)
+                if (std::find(faces.begin(), faces.end(), g) == faces.end()) {
+                    if (faces.size() == 16) return false;
+                    faces.push_back(g);
+                }
+        }
+    }
+    for (uint32_t f : faces) killFace(f);
+    for (uint32_t v : verts) {
+        mVerts[v].alive = false;
+        ++mVerts[v].version;
+        mFreeVerts.push_back(v);
+        --mVertexCount;
+    }
+    return true;
 }
 
 size_t Decimator::removeDegenerateFaces()
 {
+    // A zero-area face has no normal worth keeping: only topology and the shape of the faces that
+    // remain limit these collapses.
+    const double savedCos = mMinNormalCos;
+    mMinNormalCos = -1.0;
     size_t remaining = 0;
     for (bool progress = true; progress;) {
         progress = false;
@@ -330,9 +394,11 @@ size_t Decimator::removeDegenerateFaces()
                 done = collapse(c);
             }
             if (done) progress = true;
+            else if (dropFlatComponent(f)) progress = true;
             else ++remaining;
         }
     }
+    mMinNormalCos = savedCos;
     return remaining;
 }
 

@@ -30,12 +30,18 @@ public:
     // collapse is left. Returns the number of collapses made.
     size_t decimateTo(size_t targetFaces);
 
+    // Moves another decimator's mesh into this one (slab merge). Open vertices with the same edge key
+    // are welded and their quadrics summed; `other` is left empty. The queue is not updated: call
+    // finalizeRemaining() and requeueAll() (the final pass does) before decimating again.
+    void absorb(Decimator& other);
+
     // End of the volume: every vertex still open becomes final (none should remain in an unbounded
     // domain; the count is returned so tests can check it).
     size_t finalizeRemaining();
 
     // Collapses an edge of every zero-area face left over (coincident vertices where voxels sit exactly
-    // at the iso-value) when a legal collapse exists. Returns how many such faces remain.
+    // at the iso-value) when a legal collapse exists, and drops tiny components that are flat all
+    // over (no area, no volume). Returns how many zero-area faces remain.
     size_t removeDegenerateFaces();
 
     // Requeues every contractible edge: edges refused earlier may have become legal since.
@@ -85,6 +91,7 @@ private:
     void push(uint32_t a, uint32_t b);
     bool collapse(const Candidate& c);
     bool degenerate(uint32_t f) const;
+    bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
 
     std::vector<Vertex> mVerts;

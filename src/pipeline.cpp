@@ -5,6 +5,7 @@
 
 #include "block_order.h"
 #include "decimator.h"
+#include "edge_key.h"
 #include "errors.h"
 #include "marching_cubes.h"
 #include "run_stats.h"
@@ -12,18 +13,24 @@
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_pipeline.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
 namespace vdb_isosimp {
 
 namespace {
+
+// Slabs processed independently before the final merged pass (see below). Fixed, so that the output
+// never depends on the number of threads; 4 keeps 2 cores busy despite uneven slabs.
+constexpr size_t kSlabs = 4;
 
 void checkOptions(const Options& o)
 {
@@ -54,10 +61,18 @@ uint64_t countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, c
         [](uint64_t a, uint64_t b) { return a + b; });
 }
 
-// Serial, in-order stage: integration and the decimation schedule of the paper's section 4.2.
+// What one slab's integrator measured; merged into the Report in slab order.
+struct SlabStats {
+    uint64_t decimations = 0, maxIntermediateFaces = 0, maxUncontractibleFaces = 0;
+    std::vector<DecimationRecord> trace;
+};
+
+// Serial, in-order stage of one slab: integration and the decimation schedule of the paper's
+// section 4.2, with B faces per batch.
 class Integrator {
 public:
-    Integrator(const Options& o, double ratio, Report& rep) : mOpt(o), mRatio(ratio), mRep(rep)
+    Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
+        : mOpt(o), mRatio(ratio), mBatch(batch), mSlab(slab)
     {
         mInitial = ratio < o.initialRatio;
     }
@@ -70,29 +85,33 @@ public:
             // Initial phase: let the intermediate mesh grow to B faces, then decimate it at rate R_i,
             // until the regular target catches up (avoids over-decimating the first batches). Never
             // below the regular target: the final mesh must still be able to reach R*F.
-            if (mDec.faceCount() + incoming > mOpt.batchFaces && mDec.faceCount() > 0) {
+            if (mDec.faceCount() + incoming > mBatch && mDec.faceCount() > 0) {
                 const uint64_t initial = phaseTarget(double(mDec.faceCount()), mOpt.initialRatio);
                 const uint64_t regular = phaseTarget(double(mFacesGenerated), mRatio);
                 if (regular >= initial) mInitial = false;
                 decimate(std::max(initial, regular));
                 mSinceLast = 0;
             }
-        } else if (mSinceLast + incoming > mOpt.batchFaces && mSinceLast > 0) {
+        } else if (mSinceLast + incoming > mBatch && mSinceLast > 0) {
             decimate(phaseTarget(double(mFacesGenerated), mRatio));
             mSinceLast = 0;
         }
         mDec.addBlock(b);
         mFacesGenerated += incoming;
         mSinceLast += incoming;
-        mRep.maxIntermediateFaces = std::max<uint64_t>(mRep.maxIntermediateFaces, mDec.faceCount());
+        mStats.maxIntermediateFaces = std::max<uint64_t>(mStats.maxIntermediateFaces, mDec.faceCount());
     }
 
-    void finish(uint64_t targetFaces)
+    // The last pass over the whole (merged) surface: every vertex is final now.
+    void finish(uint64_t targetFaces, uint64_t facesGenerated, uint64_t& unfinalized)
     {
-        mRep.unfinalizedAtEnd = mDec.finalizeRemaining();
+        mFacesGenerated = facesGenerated;
+        unfinalized = mDec.finalizeRemaining();
+        // One queue over the merged slabs: their own queues only knew their own edges.
+        mDec.requeueAll();
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
-        // Then, only if still above target, allow larger normal turns step by step (never a flip).
+        // Then, only if still above target, allow larger normal turns step by step.
         for (double turn : {0.17, 0.0, -0.3, -0.6}) {
             mDec.setMaxNormalTurn(turn);
             while (mDec.faceCount() > targetFaces) {
@@ -102,11 +121,12 @@ public:
         }
         mDec.setMaxNormalTurn(0.17);
         // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
-        if (targetFaces < mFacesGenerated) mDec.removeDegenerateFaces();
+        if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
-    const Decimator& decimator() const { return mDec; }
+    Decimator& decimator() { return mDec; }
+    const SlabStats& stats() const { return mStats; }
 
 private:
     // F_t = (F - F_u) * rate + F_u: only the contractible part of the mesh is held to the rate.
@@ -118,21 +138,46 @@ private:
 
     void decimate(uint64_t target)
     {
-        DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target};
-        mRep.maxUncontractibleFaces = std::max<uint64_t>(mRep.maxUncontractibleFaces, rec.uncontractible);
+        DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target, mSlab};
+        mStats.maxUncontractibleFaces = std::max<uint64_t>(mStats.maxUncontractibleFaces, rec.uncontractible);
         mDec.decimateTo(target);
         rec.facesAfter = mDec.faceCount();
-        mRep.trace.push_back(rec);
-        ++mRep.decimations;
+        mStats.trace.push_back(rec);
+        ++mStats.decimations;
     }
 
     const Options& mOpt;
     double mRatio;
-    Report& mRep;
+    uint64_t mBatch;
+    uint32_t mSlab;
     Decimator mDec;
+    SlabStats mStats;
     bool mInitial = false;
     uint64_t mFacesGenerated = 0, mSinceLast = 0;
 };
+
+// A run of whole block layers (equal z), processed by its own integrator.
+struct Slab {
+    size_t begin = 0, end = 0;
+    int32_t zStart = 0;
+};
+
+// Splits the z/y/x-sorted blocks into at most `count` slabs of about equal block counts, cutting only
+// between block layers. The split depends on the volume alone, never on the thread count, so the
+// output does not either.
+std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count)
+{
+    std::vector<Slab> slabs;
+    size_t begin = 0;
+    for (size_t s = 0; s < count && begin < blocks.size(); ++s) {
+        size_t end = s + 1 == count ? blocks.size() : std::max(begin + 1, blocks.size() * (s + 1) / count);
+        while (end < blocks.size() && blocks[end][2] == blocks[end - 1][2]) ++end;
+        slabs.push_back({begin, end, blocks[begin][2]});
+        begin = end;
+    }
+    if (begin < blocks.size()) slabs.back().end = blocks.size();
+    return slabs;
+}
 
 } // namespace
 
@@ -193,18 +238,29 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
         ratio = std::min(1.0, double(opt.targetFaces) / double(rep.facesFull));
     }
 
-    {
-        // Extract in parallel, integrate and decimate in order. The number of blocks in flight is
-        // bounded, so memory is too; the in-order stage makes the output independent of threads.
-        Integrator integ(opt, ratio, rep);
-        released = true;
-        size_t next = 0, done = 0;
+    // Slabs: whole block layers, each extracted and decimated on its own, in parallel when threads
+    // allow. Vertices on the x/y edges of a slab's first voxel layer are shared with the slab below,
+    // so they stay open there (a seam) until the slabs are merged; every other vertex follows the
+    // modifiability rule inside its slab. Each slab gets B/S faces per batch, so the intermediate
+    // meshes together stay within R*F + B plus the uncontractible faces.
+    const std::vector<Slab> slabs = splitSlabs(blocks, kSlabs);
+    const uint64_t batch = std::max<uint64_t>(1000, opt.batchFaces / slabs.size());
+    std::vector<std::unique_ptr<Integrator>> integs;
+    for (uint32_t i = 0; i < slabs.size(); ++i) integs.push_back(std::make_unique<Integrator>(opt, ratio, batch, i));
+    released = true;
+    std::mutex progressMutex;
+    size_t done = 0;
+    auto runSlab = [&](size_t si) {
+        const Slab& slab = slabs[si];
+        Integrator& integ = *integs[si];
+        const bool seam = si > 0;
+        size_t next = slab.begin;
         const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
         tbb::parallel_pipeline(
             tokens,
             tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
                                            [&](tbb::flow_control& fc) -> size_t {
-                                               if (next == blocks.size()) { fc.stop(); return 0; }
+                                               if (next == slab.end) { fc.stop(); return 0; }
                                                return next++;
                                            }) &
                 tbb::make_filter<size_t, std::shared_ptr<BlockMesh>>(
@@ -218,27 +274,58 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
                         m->minValue = *mm.first;
                         m->maxValue = *mm.second;
                         extractBlock(s, cls, info.indexToWorld, flip, *m);
+                        if (seam && blocks[i][2] == slab.zStart)
+                            for (size_t v = 0; v < m->keys.size(); ++v) {
+                                const EdgeCoord e = decodeEdgeKey(m->keys[v]);
+                                if (e.z == slab.zStart && e.axis != 2) m->finalAfterBlock[v] = 0;
+                            }
                         return m;
                     }) &
                 tbb::make_filter<std::shared_ptr<BlockMesh>, void>(
                     tbb::filter_mode::serial_in_order, [&](std::shared_ptr<BlockMesh> m) {
-                        sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         integ.add(*m);
-                        vol->releaseLeaf(blocks[m->blockIndex]);
+                        // The slab below still samples this slab's first layer of leaves.
+                        if (!seam || blocks[m->blockIndex][2] != slab.zStart) vol->releaseLeaf(blocks[m->blockIndex]);
+                        std::lock_guard<std::mutex> lock(progressMutex);
+                        sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         ++done;
                         if (progress && (done % 256 == 0 || done == blocks.size()) &&
                             !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))
                             throw Cancelled("cancelled");
                     }));
+    };
+    tbb::parallel_for(size_t(0), slabs.size(), runSlab);
 
-        if (opt.targetFaces == 0) rep.facesFull = integ.facesGenerated();
-        if (rep.facesFull == 0) throw noSurface();
-        rep.ratio = ratio;
-        rep.facesTarget = opt.targetFaces > 0 ? std::min<uint64_t>(opt.targetFaces, rep.facesFull)
-                                              : uint64_t(std::llround(ratio * double(rep.facesFull)));
-        integ.finish(rep.facesTarget);
-        result.mesh = integ.decimator().mesh();
+    // Merge the slabs in order (welding the seams by edge key) and run the final pass on the whole.
+    uint64_t facesGenerated = 0, intermediate = 0;
+    for (const auto& integ : integs) {
+        facesGenerated += integ->facesGenerated();
+        const SlabStats& st = integ->stats();
+        rep.decimations += st.decimations;
+        intermediate += st.maxIntermediateFaces;
+        rep.maxUncontractibleFaces += st.maxUncontractibleFaces;
+        rep.trace.insert(rep.trace.end(), st.trace.begin(), st.trace.end());
     }
+    Integrator& whole = *integs[0];
+    for (size_t i = 1; i < integs.size(); ++i) {
+        whole.decimator().absorb(integs[i]->decimator());
+        integs[i].reset();
+    }
+    rep.maxIntermediateFaces = std::max(intermediate, uint64_t(whole.decimator().faceCount()));
+
+    if (opt.targetFaces == 0) rep.facesFull = facesGenerated;
+    if (rep.facesFull == 0) throw noSurface();
+    rep.ratio = ratio;
+    rep.facesTarget = opt.targetFaces > 0 ? std::min<uint64_t>(opt.targetFaces, rep.facesFull)
+                                          : uint64_t(std::llround(ratio * double(rep.facesFull)));
+    uint64_t unfinalized = 0;
+    const size_t seamVertices = whole.decimator().openVertices();
+    const size_t traced = whole.stats().trace.size();
+    whole.finish(rep.facesTarget, facesGenerated, unfinalized);
+    rep.unfinalizedAtEnd = unfinalized - seamVertices;
+    rep.trace.insert(rep.trace.end(), whole.stats().trace.begin() + traced, whole.stats().trace.end());
+    rep.decimations += whole.stats().trace.size() - traced;
+    result.mesh = whole.decimator().mesh();
     rep.facesOut = result.mesh.triangles.size();
     rep.vertsOut = result.mesh.points.size();
     rep.seconds = clock.seconds();

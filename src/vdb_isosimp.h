@@ -57,6 +57,7 @@ struct DecimationRecord {
     uint64_t facesBefore = 0, facesAfter = 0;
     uint64_t uncontractible = 0;   // F_u before the pass
     uint64_t target = 0;           // F_t
+    uint32_t slab = 0;             // which slab's integrator ran it (the final pass: slab 0)
 };
 
 // What a run did; `--report` writes it as JSON.

@@ -192,7 +192,7 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     const long decimations = std::stol(r2.substr(dp + 15));
     EXPECT_GT(decimations, 2);
     EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), decimations + 1);
-    EXPECT_EQ(csv.rfind("decimation,faces_generated,faces_before,faces_after,uncontractible,target\n", 0), 0u);
+    EXPECT_EQ(csv.rfind("decimation,faces_generated,faces_before,faces_after,uncontractible,target,slab\n", 0), 0u);
     // --quiet prints nothing on success.
     EXPECT_EQ(run(d, "sphere.vdb -q -o q.ply").err, "");
 }
