@@ -6,6 +6,10 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <mutex>
@@ -61,13 +65,48 @@ public:
 
     std::array<double, 2> valueRange() const override
     {
-        double lo = double(mGrid->background()), hi = lo;
-        for (auto it = mGrid->tree().cbeginValueAll(); it; ++it) {
-            const double v = double(*it);
-            lo = std::min(lo, v);
-            hi = std::max(hi, v);
+        // Scanning the grid itself would load every voxel buffer at once and keep it: read a second,
+        // delayed-loading copy instead and free each leaf right after reading it, so the scan costs a
+        // second decompression pass but only one leaf of memory at a time.
+        typename GridT::Ptr copy = mGrid;
+        try {
+            openvdb::io::File f(mInfo.file);
+            f.setCopyMaxBytes(0);
+            f.open(/*delayLoad=*/true);
+            copy = openvdb::gridPtrCast<GridT>(f.readGrid(mInfo.gridName));
+        } catch (const std::exception&) {
+            copy = mGrid;  // not from a file (or unreadable now): scan in place
         }
-        return {lo, hi};
+        if (!copy) copy = mGrid;
+        double lo = double(copy->background()), hi = lo;
+        typename GridT::TreeType::ValueAllCIter tiles = copy->tree().cbeginValueAll();
+        tiles.setMaxDepth(GridT::TreeType::ValueAllCIter::LEAF_DEPTH - 1);
+        for (; tiles; ++tiles) {
+            lo = std::min(lo, double(*tiles));
+            hi = std::max(hi, double(*tiles));
+        }
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        std::vector<LeafT*> leaves;
+        if (copy != mGrid) copy->tree().getNodes(leaves);
+        else for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(const_cast<LeafT*>(it.getLeaf()));
+        const bool release = copy != mGrid;
+        using Range = std::array<double, 2>;
+        const Range r = tbb::parallel_reduce(
+            tbb::blocked_range<size_t>(0, leaves.size(), 64), Range{lo, hi},
+            [&](const tbb::blocked_range<size_t>& br, Range acc) {
+                for (size_t i = br.begin(); i != br.end(); ++i) {
+                    const auto* v = leaves[i]->buffer().data();
+                    const auto mm = std::minmax_element(v, v + LeafT::SIZE);
+                    acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
+                    if (release) {
+                        typename LeafT::Buffer empty(openvdb::PartialCreate(), copy->background());
+                        leaves[i]->swap(empty);
+                    }
+                }
+                return acc;
+            },
+            [](const Range& a, const Range& b) { return Range{std::min(a[0], b[0]), std::max(a[1], b[1])}; });
+        return r;
     }
 
 private:
