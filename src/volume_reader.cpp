@@ -2,6 +2,7 @@
 
 #include "block_order.h"
 #include "errors.h"
+#include "input_checks.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -19,6 +20,14 @@ namespace vdb_isosimp {
 
 namespace {
 
+// OpenVDB's messages may span lines; the programs print one line per error.
+std::string oneLine(std::string s)
+{
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    return s;
+}
+
 template <typename GridT>
 class VolumeT final : public Volume {
 public:
@@ -30,6 +39,18 @@ public:
     }
 
     void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
+    {
+        try {
+            sampleUnchecked(origin, out);
+        } catch (const openvdb::Exception& e) {
+            std::ostringstream s;
+            s << "cannot read the voxels of grid '" << mInfo.gridName << "' near [" << origin[0] << ", " << origin[1]
+              << ", " << origin[2] << "] (" << oneLine(e.what()) << ")";
+            throw InputError(s.str());
+        }
+    }
+
+    void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
     {
         typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
         out.origin = origin;
@@ -125,6 +146,27 @@ Affine affineOf(const openvdb::math::Transform& xform)
     return a;
 }
 
+// Topology figures for the memory estimate; walks nodes, never a voxel buffer.
+template <typename GridT>
+void topologyInfo(const GridT& g, VolumeInfo& info)
+{
+    const auto& tree = g.tree();
+    info.leafCount = tree.leafCount();
+    info.activeVoxels = g.activeVoxelCount();
+    info.topologyBytes = tree.memUsage();
+    info.valueBytes = sizeof(typename GridT::ValueType);
+    std::vector<int32_t> z;
+    z.reserve(size_t(info.leafCount));
+    for (auto it = tree.cbeginLeaf(); it; ++it) z.push_back(it->origin().z());
+    std::sort(z.begin(), z.end());
+    for (size_t i = 0; i < z.size();) {
+        size_t j = i;
+        while (j < z.size() && z[j] == z[i]) ++j;
+        info.maxLeavesPerLayer = std::max<uint64_t>(info.maxLeavesPerLayer, j - i);
+        i = j;
+    }
+}
+
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
 } // namespace
@@ -136,6 +178,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
+    // OpenVDB trusts the offsets a file states; a truncated file would send it into a loop.
+    checkVdbFileStructure(path);
 
     openvdb::io::File file(path);
     openvdb::GridPtrVecPtr metas;
@@ -144,7 +188,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         file.open(/*delayLoad=*/true);
         metas = file.readAllGridMetadata();
     } catch (const std::exception& e) {
-        throw InputError(path + ": not a readable OpenVDB file (" + e.what() + ")");
+        throw InputError(path + ": not a readable OpenVDB file (" + oneLine(e.what()) + ")");
     }
     if (!metas || metas->empty()) throw InputError(path + ": the file holds no grids");
 
@@ -170,15 +214,26 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
                              "; only float and double grids can be meshed");
     }
 
+    // Before the topology is read: the bounding box the file states, and the transform.
+    try {
+        checkGridMetadata(*meta);
+        checkTransform(meta->transform());
+    } catch (const InputError& e) {
+        throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
+    }
+
     openvdb::GridBase::Ptr grid;
     try {
         grid = file.readGrid(meta->getName());
     } catch (const std::exception& e) {
-        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + e.what() + ")");
+        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + oneLine(e.what()) + ")");
     }
-    if (!grid->transform().isLinear())
-        throw InputError(path + ": grid '" + meta->getName() + "' has a non-linear transform (" +
-                         grid->transform().mapType() + "); only linear transforms are supported");
+    if (!grid) throw InputError(path + ": cannot read grid '" + meta->getName() + "'");
+    try {
+        checkTransform(grid->transform());
+    } catch (const InputError& e) {
+        throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
+    }
 
     VolumeInfo info;
     info.file = path;
@@ -192,18 +247,30 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     std::unique_ptr<Volume> vol;
     if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
         info.background = f->background();
-        info.leafCount = f->tree().leafCount();
-        info.activeVoxels = f->activeVoxelCount();
+        topologyInfo(*f, info);
         vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info);
-    } else {
-        auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid);
+    } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
         info.background = d->background();
-        info.leafCount = d->tree().leafCount();
-        info.activeVoxels = d->activeVoxelCount();
+        topologyInfo(*d, info);
         vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info);
+    } else {
+        throw InputError(path + ": grid '" + info.gridName + "' is not a float or double grid");
     }
+    if (!std::isfinite(info.background))
+        throw InputError(path + ": grid '" + info.gridName + "' has a non-finite background value");
     if (info.activeVoxels == 0 && info.leafCount == 0)
         throw InputError(path + ": grid '" + info.gridName + "' is empty (no active voxels)");
+    // The topology's own box (leaves and active tiles), before any voxel is read.
+    openvdb::CoordBBox box;
+    if (grid->baseTree().evalLeafBoundingBox(box)) {
+        const int32_t mn[3] = {box.min().x(), box.min().y(), box.min().z()};
+        const int32_t mx[3] = {box.max().x(), box.max().y(), box.max().z()};
+        try {
+            checkIndexBox(mn, mx, "the grid's leaves and active tiles span the index box");
+        } catch (const InputError& e) {
+            throw InputError(path + ": grid '" + info.gridName + "': " + e.what());
+        }
+    }
     return vol;
 }
 

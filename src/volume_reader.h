@@ -21,11 +21,17 @@ struct VolumeInfo {
     double background = 0.0;
     uint64_t leafCount = 0;
     uint64_t activeVoxels = 0;
+    // For the memory estimate (input_checks.h), from the topology alone.
+    uint64_t topologyBytes = 0;      // tree nodes without the voxel buffers
+    uint64_t maxLeavesPerLayer = 0;  // leaves in the fullest z-layer of leaves
+    uint64_t valueBytes = 4;         // sizeof(float) or sizeof(double)
 };
 
 class Volume {
 public:
-    // Opens `gridName` (empty: the first float/double grid) of `path`.
+    // Opens `gridName` (empty: the first float/double grid) of `path`: the file's structure, the
+    // grid's type, class, transform and index bounding box are checked before any voxel is read
+    // (input_checks.h); OpenVDB's own exceptions become InputError too.
     // @throw InputError naming the file and the problem.
     static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName);
     virtual ~Volume() = default;
@@ -34,7 +40,8 @@ public:
 
     // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
     virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
-    // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf.
+    // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
+    // when the voxels cannot be read from the file (delayed loading).
     virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
     // Frees the voxel buffer of the leaf whose origin is `blockOrigin`, if any. Leaf L is last sampled
     // by block L itself (blocks after it in z/y/x order only sample higher voxels), so once block L is

@@ -1,0 +1,61 @@
+// Input checks done before any voxel is read, so a hostile or damaged file fails in milliseconds with
+// one clear line instead of hanging, crashing or running for hours first:
+//  - the file's own structure (header, grid descriptors and the byte ranges they claim), which
+//    OpenVDB trusts blindly: a truncated file otherwise sends its reader into a loop over garbage;
+//  - the grid's index bounding box, from the file's metadata, against the range vertex keys can name;
+//  - the transform: linear, finite, invertible;
+//  - the estimated peak memory of a run against a budget (--max-memory, default the machine's).
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include <openvdb/openvdb.h>
+
+#include "vdb_isosimp.h"
+#include "volume_reader.h"
+
+namespace vdb_isosimp {
+
+// Walks the header and the grid descriptors of a .vdb file and checks that every grid's data lies
+// inside the file. Files written without grid offsets (streams) are left to OpenVDB.
+// @throw InputError naming the file ("truncated or damaged OpenVDB file ...").
+void checkVdbFileStructure(const std::string& path);
+
+// Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
+// one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).
+// @throw InputError (without the file name) describing the box and the supported range.
+void checkIndexBox(const int32_t min[3], const int32_t max[3], const char* what);
+
+// The bounding box the file's metadata states for a grid (file_bbox_min/max), when present.
+void checkGridMetadata(const openvdb::GridBase& meta);
+
+// Linear, all coefficients finite, invertible. @throw InputError (without the file name).
+void checkTransform(const openvdb::math::Transform& xform);
+
+// Peak memory of a run, estimated from the topology alone (no voxel read). Parts in bytes.
+struct MemoryEstimate {
+    uint64_t topology = 0;  // tree nodes (voxel buffers not counted)
+    uint64_t voxels = 0;    // voxel buffers alive at once
+    uint64_t blocks = 0;    // the block list
+    uint64_t mesh = 0;      // intermediate and final mesh
+    uint64_t base = 0;      // program, libraries, thread stacks
+    uint64_t total() const { return topology + voxels + blocks + mesh + base; }
+};
+
+MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& options);
+
+// Physical memory, lowered to the cgroup (container) limit when there is one. 0 if unknown.
+uint64_t machineMemoryBytes();
+
+// "1.5 GiB", "300 MiB".
+std::string formatBytes(uint64_t bytes);
+
+// Parses a memory size: a number with an optional unit K, M, G, T (powers of 1024; "KB", "KiB",
+// "G" ... accepted, case-insensitive), or "0" for no limit. False on anything else or overflow.
+bool parseMemorySize(const std::string& text, uint64_t& bytes);
+
+// Opens the grid (topology only), estimates the run's memory and throws InputError naming the file
+// when it exceeds `limitBytes` (0: no limit). Returns the estimate.
+MemoryEstimate checkMemoryBudget(const std::string& path, const Options& options, uint64_t limitBytes);
+
+} // namespace vdb_isosimp
