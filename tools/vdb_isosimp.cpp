@@ -1,19 +1,26 @@
 // vdb_isosimp IN.vdb: parse the command line, run one library call, report. Errors become one line on
 // stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
 #include "errors.h"
+#include "input_checks.h"
 #include "mesh_writer.h"
 #include "run_stats.h"
 #include "vdb_isosimp.h"
 
 #include <CLI/CLI.hpp>
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <sys/stat.h>
+#include <thread>
 #include <unistd.h>
+#include <vector>
 
 namespace {
 
@@ -42,6 +49,88 @@ private:
     Stopwatch mClock;
     double mLast = -1.0;
 };
+
+// Interruption. SIGINT/SIGTERM/SIGHUP only record the signal (nothing else is safe in a handler).
+// The library sees it through RunProgress at its next progress call, throws Cancelled and unwinds;
+// main then exits with 128 + the signal number (130 for Ctrl-C, 143 for SIGTERM). Steps without a
+// cancellation point (the final decimation, writing the mesh) are covered by the watchdog thread:
+// if the run has not stopped 0.5 s after the signal, or at a second signal, it removes the
+// temporary files and ends the process with the same code. Nothing is left under an output name:
+// files only reach their names by a rename after a complete write.
+std::atomic<int> gSignal{0};
+std::atomic<int> gSignalCount{0};
+
+extern "C" void onSignal(int sig)
+{
+    gSignal.store(sig);
+    gSignalCount.fetch_add(1);
+}
+
+class Watchdog {
+public:
+    explicit Watchdog(std::vector<std::string> temporaries) : mTemps(std::move(temporaries))
+    {
+        for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+            struct sigaction sa {};
+            sa.sa_handler = onSignal;
+            sigemptyset(&sa.sa_mask);
+            ::sigaction(sig, &sa, nullptr);
+        }
+        mThread = std::thread([this] { watch(); });
+    }
+    ~Watchdog()
+    {
+        mDone.store(true);
+        mThread.join();
+    }
+
+private:
+    void watch()
+    {
+        using Clock = std::chrono::steady_clock;
+        Clock::time_point since{};
+        while (!mDone.load()) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+            const int sig = gSignal.load();
+            if (!sig) continue;
+            if (since == Clock::time_point{}) since = Clock::now();
+            if (gSignalCount.load() > 1 || Clock::now() - since > std::chrono::milliseconds(500)) {
+                for (const std::string& t : mTemps) ::unlink(t.c_str());
+                static const char msg[] = "vdb_isosimp: interrupted\n";
+                if (::write(STDERR_FILENO, msg, sizeof msg - 1) < 0) {}
+                ::_exit(128 + sig);
+            }
+        }
+    }
+
+    std::vector<std::string> mTemps;
+    std::atomic<bool> mDone{false};
+    std::thread mThread;
+};
+
+// What the library is given: the bar when there is one, and a stop when a signal came.
+class RunProgress final : public Progress {
+public:
+    explicit RunProgress(Progress* bar) : mBar(bar) {}
+    bool update(double fraction, uint64_t facesKept) override
+    {
+        if (gSignal.load()) return false;
+        return mBar ? mBar->update(fraction, facesKept) : true;
+    }
+
+private:
+    Progress* mBar;
+};
+
+std::string temporaryFor(const std::string& path) { return path + ".tmp" + std::to_string(::getpid()); }
+
+// Existing special files (FIFOs, devices such as /dev/stdout or /dev/full) are written in place: a
+// temporary file and a rename would replace the device node itself.
+bool isSpecialFile(const std::string& path)
+{
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
 
 std::string stemOf(const std::string& path)
 {
@@ -104,7 +193,15 @@ std::string traceCsv(const Report& r)
 // Text files (the report, the trace) also go through a temporary file and a rename.
 void writeText(const std::string& path, const std::string& text)
 {
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    if (isSpecialFile(path)) {
+        std::FILE* f = std::fopen(path.c_str(), "wb");
+        if (!f) throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+        const bool bad = std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fflush(f) != 0;
+        const int err = errno;
+        if (std::fclose(f) != 0 || bad) throw OutputError(path + ": cannot write report (" + std::strerror(bad ? err : errno) + ")");
+        return;
+    }
+    const std::string tmp = temporaryFor(path);
     {
         std::ofstream f(tmp, std::ios::binary);
         f << text;
@@ -123,7 +220,16 @@ void writeText(const std::string& path, const std::string& text)
 // Fails fast, before the long run, when the output cannot be created where asked.
 void probeWritable(const std::string& path)
 {
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0) {
+        if (S_ISDIR(st.st_mode)) throw OutputError(path + ": cannot create output file (" + std::strerror(EISDIR) + ")");
+        if (!S_ISREG(st.st_mode)) {  // written in place: it must be open for writing
+            if (::access(path.c_str(), W_OK) != 0)
+                throw OutputError(path + ": cannot write to it (" + std::strerror(errno) + ")");
+            return;
+        }
+    }
+    const std::string tmp = temporaryFor(path);
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
     std::fclose(f);
@@ -174,6 +280,12 @@ int main(int argc, char** argv)
                    "uncontractible,target,slab (for plots of the intermediate mesh size; faces_generated counts\n"
                    "per slab, the last row is the final pass over the merged slabs)");
     app.add_flag("-q,--quiet", quiet, "Print errors only (no progress bar, no summary)");
+    std::string maxMemory = "machine";
+    app.add_option("--max-memory", maxMemory,
+                   "Refuse to start when the estimated peak memory (from the grid's topology, before any voxel\n"
+                   "is read) exceeds SIZE: bytes or K/M/G/T (powers of 1024), 0 for no limit. Default: the\n"
+                   "machine's physical memory, or the container's limit when lower")
+        ->default_val(maxMemory);
 
     try {
         app.parse(argc, argv);
@@ -189,6 +301,12 @@ int main(int argc, char** argv)
         return 2;
     }
     if (output.empty()) output = stemOf(input) + ".ply";
+    uint64_t memoryLimit = 0;
+    if (maxMemory == "machine") memoryLimit = machineMemoryBytes();
+    else if (!parseMemorySize(maxMemory, memoryLimit)) {
+        std::cerr << "vdb_isosimp: --max-memory: '" << maxMemory << "' is not a size (e.g. 8G, 512M, 0) (see --help)\n";
+        return 2;
+    }
     if (ascii) {
         try {
             formatForPath(output, true);
@@ -201,9 +319,16 @@ int main(int argc, char** argv)
     try {
         formatForPath(output, ascii);  // an unsupported extension fails before the long run
         probeWritable(output);
+        std::vector<std::string> temporaries{temporaryFor(output)};
+        for (const std::string* p : {&reportPath, &tracePath})
+            if (!p->empty()) temporaries.push_back(temporaryFor(*p));
+        Watchdog watchdog(temporaries);
+        checkMemoryBudget(input, opt, memoryLimit);
         TerminalProgress bar;
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
-        Result res = simplifyFile(input, opt, showBar ? &bar : nullptr);
+        RunProgress progress(showBar ? &bar : nullptr);
+        Result res = simplifyFile(input, opt, &progress);
+        if (gSignal.load()) throw Cancelled("interrupted");
         const Report& r = res.report;
         if (r.isoDefaulted && !quiet)
             std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
@@ -224,6 +349,10 @@ int main(int argc, char** argv)
     } catch (const EmptySurfaceError& e) {
         std::cerr << "vdb_isosimp: " << e.what() << "\n";
         return 3;
+    } catch (const Cancelled&) {
+        std::cerr << "vdb_isosimp: interrupted\n";
+        const int sig = gSignal.load();
+        return 128 + (sig ? sig : SIGINT);
     } catch (const std::exception& e) {
         std::cerr << "vdb_isosimp: " << e.what() << "\n";
         return 1;
