@@ -11,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <vector>
 
@@ -352,7 +353,16 @@ void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& op
     } catch (const OutputError& e) {
         throw OutputError(path + ": " + e.what());
     }
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+    // An existing device or FIFO (/dev/stdout, /dev/full, a named pipe, or a link to one) is written
+    // in place: a temporary file renamed over it would replace the node itself. A directory is refused.
+    struct stat st {};
+    const bool exists = ::stat(path.c_str(), &st) == 0;
+    if (exists && S_ISDIR(st.st_mode)) throw OutputError(path + ": cannot create output file (" + std::strerror(EISDIR) + ")");
+    const bool inPlace = exists && !S_ISREG(st.st_mode);
+    const std::string tmp = inPlace ? path : path + ".tmp" + std::to_string(::getpid());
+    auto discard = [&] {
+        if (!inPlace) std::remove(tmp.c_str());
+    };
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
     try {
@@ -366,21 +376,21 @@ void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& op
         }
     } catch (const OutputError& e) {
         std::fclose(f);
-        std::remove(tmp.c_str());
+        discard();
         throw OutputError(path + ": " + e.what());
     } catch (...) {
         std::fclose(f);
-        std::remove(tmp.c_str());
+        discard();
         throw;
     }
     // Any earlier short write shows up in the stream's error flag or at fflush/fclose (e.g. disk full).
     const bool bad = std::ferror(f) != 0 || std::fflush(f) != 0;
     const int err = errno;
     if (std::fclose(f) != 0 || bad) {
-        std::remove(tmp.c_str());
+        discard();
         throw OutputError(path + ": write failed (" + std::strerror(bad ? err : errno) + ")");
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    if (!inPlace && std::rename(tmp.c_str(), path.c_str()) != 0) {
         const int e = errno;
         std::remove(tmp.c_str());
         throw OutputError(path + ": cannot move the finished mesh into place (" + std::strerror(e) + ")");
