@@ -1,5 +1,6 @@
 #include "raw_converter.h"
 
+#include <openvdb/io/Archive.h>
 #include <openvdb/io/File.h>
 #include <openvdb/tools/Prune.h>
 
@@ -13,7 +14,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <memory>
+#include <sys/stat.h>
 #include <sys/resource.h>
 #include <type_traits>
 #include <unistd.h>
@@ -222,6 +225,14 @@ LeafFn leafFunction(ScalarType t, bool swap, bool plain)
     return nullptr;
 }
 
+/// openvdb::io::File::write never looks at its stream after writing, so a full disk leaves a
+/// truncated file that looks complete. This writes the same seekable layout (header, grid offsets,
+/// delayed-loadable grids) to a stream of ours, whose state is checked.
+class CheckedArchive : public openvdb::io::Archive {
+public:
+    void writeTo(std::ostream& os, const openvdb::GridCPtrVec& grids) const { Archive::write(os, grids, /*seekable=*/true); }
+};
+
 /// Removes a file on scope exit unless released.
 struct TempFileGuard {
     std::string path;
@@ -394,6 +405,13 @@ RawConvertStats convertRawToVdb(const std::string& input, const std::string& out
     // Header first: a bad input is reported before anything is created.
     resolveVolumeInfo(input, options);
 
+    // A .vdb needs a seekable regular file; renaming a temporary file over a device would replace it.
+    struct stat st {};
+    if (::stat(output.c_str(), &st) == 0) {
+        if (S_ISDIR(st.st_mode)) throw RawInputError(output, "cannot write: is a directory");
+        if (!S_ISREG(st.st_mode)) throw RawInputError(output, "cannot write: not a regular file (a .vdb file must be seekable)");
+    }
+
     TempFileGuard guard;
     guard.path = output + ".tmp." + std::to_string(static_cast<long>(::getpid()));
     {
@@ -410,9 +428,17 @@ RawConvertStats convertRawToVdb(const std::string& input, const std::string& out
     auto grid = convertToGrid(input, options, &stats);
     grid->setSaveFloatAsHalf(options.half);
     try {
-        openvdb::io::File file(guard.path);
-        file.write({grid});
-        file.close();
+        std::ofstream os(guard.path, std::ios::out | std::ios::binary | std::ios::trunc);
+        if (!os) throw RawInputError(output, std::string("cannot write: ") + std::strerror(errno));
+        errno = 0;
+        CheckedArchive().writeTo(os, openvdb::GridCPtrVec{grid});
+        os.flush();
+        const int err = errno;
+        if (!os) throw RawInputError(output, std::string("cannot write: ") + (err ? std::strerror(err) : "write error"));
+        os.close();
+        if (!os) throw RawInputError(output, std::string("cannot write: ") + (errno ? std::strerror(errno) : "write error"));
+    } catch (const RawInputError&) {
+        throw;
     } catch (const openvdb::Exception& e) {
         throw RawInputError(output, std::string("cannot write: ") + e.what());
     } catch (const std::exception& e) {

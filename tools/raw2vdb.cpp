@@ -52,14 +52,17 @@ std::vector<T> parseList(const std::string& option, const std::string& text, std
     return out;
 }
 
-// Interrupted (Ctrl-C, kill): remove the temporary output (convertRawToVdb writes OUT.tmp.<pid>).
+// Interrupted (Ctrl-C, kill): remove the temporary output (convertRawToVdb writes OUT.tmp.<pid>) and
+// exit at once with 128 + the signal (130 for Ctrl-C, 143 for SIGTERM). unlink, write and _exit are
+// async-signal-safe; the output name only ever receives a complete file, by rename.
 char gTempPath[4096];
 
 extern "C" void onSignal(int sig)
 {
     if (gTempPath[0]) ::unlink(gTempPath);
-    std::signal(sig, SIG_DFL);
-    std::raise(sig);
+    static const char msg[] = "raw2vdb: interrupted\n";
+    if (::write(STDERR_FILENO, msg, sizeof msg - 1) < 0) {}
+    ::_exit(128 + sig);
 }
 
 std::string mib(uint64_t bytes)
