@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -296,7 +297,11 @@ int main(int argc, char** argv)
         return 2;
     }
     if (*isoOpt) opt.iso = iso;
-    if (opt.ratio <= 0.0) {
+    if (*isoOpt && !std::isfinite(iso)) {
+        std::cerr << "vdb_isosimp: --iso must be a finite number (see --help)\n";
+        return 2;
+    }
+    if (!(opt.ratio > 0.0)) {  // also NaN, which CLI11's range check lets through
         std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
         return 2;
     }
