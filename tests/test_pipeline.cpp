@@ -17,6 +17,7 @@
 #include <map>
 #include <set>
 #include <tuple>
+#include <unistd.h>
 
 using namespace vdb_isosimp;
 namespace vt = vdb_isosimp::testing;
@@ -96,7 +97,8 @@ std::string sphereFile()
         // Radius 90 voxels: about 400k faces at full resolution.
         auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(45.0f, openvdb::Vec3f(1, 2, 3), 0.5f);
         g->setName("sphere");
-        path = vt::writeGrid(g, "sphere90");
+        // One file per process: ctest runs tests in parallel and OpenVDB maps input files.
+        path = vt::writeGrid(g, "sphere90_" + std::to_string(::getpid()));
     }
     return path;
 }
@@ -105,7 +107,7 @@ std::string noiseFile()
 {
     static std::string path;
     if (path.empty()) {
-        path = ::testing::TempDir() + "/noise112.vdb";
+        path = ::testing::TempDir() + "/noise112_" + std::to_string(::getpid()) + ".vdb";
         const std::string cmd = std::string(MAKE_VOLUME_EXE) + " noise -n 112 -o " + path + " > /dev/null";
         EXPECT_EQ(std::system(cmd.c_str()), 0);
     }
