@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Speed and memory against the in-core cascades, measured in the same run (issue "fast and lean"):
+#   ours (2 threads, 1 thread) vs OpenVDB volumeToMesh + meshopt_simplify vs full extraction + OpenMesh,
+#   on the CT-like noise volume at R = 0.2 and 0.02; then peak RSS on a volume and its 2x up-sampled copy
+#   kept to the same face count. Prints a Markdown table with ratios ours / baseline.
+# Usage: benchmarks/perf.sh [SIZE] [--openmesh] [--scale]
+#   SIZE        noise volume edge in voxels (default 448: ~16M faces at full resolution)
+#   --openmesh  also run full extraction + OpenMesh's decimater (slow: minutes)
+#   --scale     also run the >= 200M-face scale run (4x up-sampled SIZE/2 volume; long)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+N=448; OPENMESH=0; SCALE=0
+for a in "$@"; do
+  case "$a" in --openmesh) OPENMESH=1 ;; --scale) SCALE=1 ;; *) N=$a ;; esac
+done
+./scripts/deps.sh > /dev/null
+./scripts/build.sh -DVDB_ISOSIMP_BUILD_BENCHMARKS=ON > /dev/null
+B=build; W=${PERF_WORK:-$(mktemp -d)}; mkdir -p "$W"
+[ -z "${PERF_WORK:-}" ] && trap 'rm -rf "$W"' EXIT
+field() { sed -n "s/.*\"$1\": *\([0-9.e+-]*\).*/\1/p" "$2" | head -1; }
+rms() { "$B/mesh_error" "$1" "$2" --json | tr -d '\n' | sed -n 's/.*"a_to_b": *{[^}]*"rms_pct": *\([0-9.e+-]*\).*/\1/p'; }
+# Peak RSS and wall seconds of a command, from GNU time.
+timed() { /usr/bin/time -f "%e %M" -o "$W/time.txt" "$@" > "$W/out.json"; read -r SEC KB < "$W/time.txt"; MB=$((KB / 1024)); }
+
+[ -f "$W/noise$N.vdb" ] || "$B/make_volume" noise -n "$N" -o "$W/noise$N.vdb" > /dev/null
+ISO=0.3
+"$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r 1 -q -o "$W/full.ply" --report "$W/full.json"
+FULL=$(field faces_full "$W/full.json")
+echo "noise ${N}^3, iso $ISO: $FULL faces at full resolution; $(nproc) cores"
+echo
+echo "| case | R | faces out | seconds | peak RSS MB | RMS % diag | time / meshopt | RSS / meshopt |"
+echo "|---|---|---|---|---|---|---|---|"
+for R in 0.2 0.02; do
+  timed "$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r $R -j 2 -q -o "$W/ours.ply" --report "$W/ours.json"
+  OS=$SEC; OM=$MB; FO=$(field faces_out "$W/ours.json"); OE=$(rms "$W/full.ply" "$W/ours.ply")
+  timed "$B/baseline_meshopt" "$W/noise$N.vdb" --iso $ISO -f "$FO" -o "$W/mo.ply"
+  MS=$SEC; MM=$MB; MF=$(field faces_out "$W/out.json"); ME=$(rms "$W/full.ply" "$W/mo.ply")
+  timed "$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r $R -j 1 -q -o "$W/ours1.ply"
+  S1=$SEC; M1=$MB
+  awk -v r=$R -v fo=$FO -v os=$OS -v om=$OM -v oe=$OE -v ms=$MS -v mm=$MM -v mf=$MF -v me=$ME -v s1=$S1 -v m1=$M1 'BEGIN {
+    printf "| ours, 2 threads | %s | %d | %.1f | %d | %.5f | %.2f | %.2f |\n", r, fo, os, om, oe, os/ms, om/mm
+    printf "| ours, 1 thread | %s | %d | %.1f | %d | | %.2f (2 threads: %.2fx faster) | %.2f |\n", r, fo, s1, m1, s1/ms, s1/os, m1/mm
+    printf "| volumeToMesh + meshopt_simplify | %s | %d | %.1f | %d | %.5f | 1 | 1 |\n", r, mf, ms, mm, me }'
+  if [ "$OPENMESH" = 1 ]; then
+    timed "$B/baseline_openmesh" "$W/noise$N.vdb" --iso $ISO -f "$FO" -o "$W/om.ply"
+    awk -v r=$R -v s=$SEC -v m=$MB -v e="$(rms "$W/full.ply" "$W/om.ply")" -v f="$(field faces_out "$W/out.json")" -v ms=$MS -v mm=$MM \
+      'BEGIN { printf "| full extraction + OpenMesh | %s | %d | %.1f | %d | %.5f | %.2f | %.2f |\n", r, f, s, m, e, s/ms, m/mm }'
+  fi
+done
+
+# Peak RSS follows the output: a volume and its 2x up-sampled copy, both kept to the same face count.
+H=$((N / 2))
+[ -f "$W/half.vdb" ] || "$B/make_volume" noise -n "$H" -o "$W/half.vdb" > /dev/null
+[ -f "$W/up2.vdb" ] || "$B/upsample_volume" "$W/half.vdb" -f 2 -o "$W/up2.vdb" > /dev/null
+KEEP=200000
+timed "$B/vdb_isosimp" "$W/half.vdb" --iso $ISO -f $KEEP -q -o "$W/h.ply" --report "$W/h.json"; HS=$SEC; HM=$MB
+timed "$B/vdb_isosimp" "$W/up2.vdb" --iso $ISO -f $KEEP -q -o "$W/u.ply" --report "$W/u.json"; US=$SEC; UM=$MB
+echo
+echo "| input | faces full | faces out | seconds | peak RSS MB |"
+echo "|---|---|---|---|---|"
+echo "| noise ${H}^3 | $(field faces_full "$W/h.json") | $(field faces_out "$W/h.json") | $HS | $HM |"
+echo "| same, 2x up-sampled | $(field faces_full "$W/u.json") | $(field faces_out "$W/u.json") | $US | $UM |"
+awk -v a=$HM -v b=$UM 'BEGIN { printf "\npeak RSS ratio up-sampled / original: %.2f (target <= 1.5)\n", b/a }'
+
+if [ "$SCALE" = 1 ]; then
+  [ -f "$W/up4.vdb" ] || "$B/upsample_volume" "$W/half.vdb" -f 4 -o "$W/up4.vdb" > /dev/null
+  timed "$B/vdb_isosimp" "$W/up4.vdb" --iso $ISO -f 1000000 -q -o "$W/scale.ply" --report "$W/scale.json"
+  echo
+  echo "scale run: $(field faces_full "$W/scale.json") -> $(field faces_out "$W/scale.json") faces, $SEC s, peak $MB MB"
+  "$B/mesh_stats" "$W/scale.ply" | grep -E "closed|components"
+fi
