@@ -88,6 +88,7 @@ std::string leftovers(const std::string& dir)
 
 void write(openvdb::GridBase::Ptr grid, const std::string& path)
 {
+    openvdb::initialize();
     openvdb::io::File f(path);
     f.write({grid});
     f.close();
@@ -112,11 +113,20 @@ openvdb::FloatGrid::Ptr denseFog(int nx, int ny, int nz, const std::function<flo
     return g;
 }
 
-openvdb::FloatGrid::Ptr sphere(double voxel, openvdb::Vec3d origin = openvdb::Vec3d(0))
+// A level-set sphere of radius 12 voxels; the voxel size and origin are set through an affine map
+// (OpenVDB itself refuses a map whose determinant is below ~1e-15, so a uniform 1e-6 voxel cannot
+// exist in a .vdb: 1e-6 is tested on two axes, and 1e-4 uniformly).
+openvdb::FloatGrid::Ptr sphere(openvdb::Vec3d voxel, openvdb::Vec3d origin = openvdb::Vec3d(0))
 {
-    auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(float(12 * voxel), openvdb::Vec3f(0), float(voxel));
+    auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(12.0f, openvdb::Vec3f(0), 1.0f);
     g->setName("surface");
-    if (origin != openvdb::Vec3d(0)) g->transform().postTranslate(origin);
+    if (voxel != openvdb::Vec3d(1) || origin != openvdb::Vec3d(0)) {
+        openvdb::Mat4d m = openvdb::Mat4d::identity();
+        for (int i = 0; i < 3; ++i) m[i][i] = voxel[i];
+        m.setTranslation(origin);
+        g->setTransform(openvdb::math::Transform::Ptr(
+            new openvdb::math::Transform(openvdb::math::MapBase::Ptr(new openvdb::math::AffineMap(m)))));
+    }
     return g;
 }
 
@@ -162,11 +172,13 @@ std::vector<HostileCase> hostileCases()
                      }, -8.0f);
                      write(g, d + "/in.vdb");
                  }, "in.vdb --iso 0 -r 1 -o out.ply", 0, "", true});
-    c.push_back({"tiny_voxels_1e-6", [](const std::string& d) { write(sphere(1e-6), d + "/in.vdb"); },
+    c.push_back({"tiny_voxels_1em6_on_two_axes", [](const std::string& d) { write(sphere({1e-6, 1e-6, 1}), d + "/in.vdb"); },
                  "in.vdb -r 0.2 -o out.ply", 0, "", true});
-    c.push_back({"huge_voxels_1e6", [](const std::string& d) { write(sphere(1e6), d + "/in.vdb"); },
+    c.push_back({"tiny_voxels_1em4", [](const std::string& d) { write(sphere(openvdb::Vec3d(1e-4)), d + "/in.vdb"); },
                  "in.vdb -r 0.2 -o out.ply", 0, "", true});
-    c.push_back({"far_origin_1e7", [](const std::string& d) { write(sphere(1.0, openvdb::Vec3d(1e7, -1e7, 1e7)), d + "/in.vdb"); },
+    c.push_back({"huge_voxels_1ep6", [](const std::string& d) { write(sphere(openvdb::Vec3d(1e6)), d + "/in.vdb"); },
+                 "in.vdb -r 0.2 -o out.ply", 0, "", true});
+    c.push_back({"far_origin_1ep7", [](const std::string& d) { write(sphere(openvdb::Vec3d(1), openvdb::Vec3d(1e7, -1e7, 1e7)), d + "/in.vdb"); },
                  "in.vdb -r 0.2 -o out.ply", 0, "", true});
     c.push_back({"single_active_voxel", [](const std::string& d) {
                      auto g = fogGrid();
@@ -207,7 +219,7 @@ std::vector<HostileCase> hostileCases()
                      write(g, d + "/in.vdb");
                  }, "in.vdb --iso 0.5 -o out.ply", 1, "lies outside the supported index range"});
     c.push_back({"non_linear_transform", [](const std::string& d) {
-                     auto g = sphere(1.0);
+                     auto g = sphere(openvdb::Vec3d(1));
                      g->setTransform(openvdb::math::Transform::createFrustumTransform(
                          openvdb::BBoxd(openvdb::Vec3d(-20), openvdb::Vec3d(20)), 0.5, 10.0, 1.0));
                      write(g, d + "/in.vdb");
@@ -222,39 +234,39 @@ std::vector<HostileCase> hostileCases()
                  "in.vdb -o out.ply", 1, "not a readable OpenVDB file"});
     for (int cut : {12, 40, 200, 3000, -1}) {
         c.push_back({"truncated_at_" + (cut < 0 ? std::string("last_byte") : std::to_string(cut)), [cut](const std::string& d) {
-                         write(sphere(1.0), d + "/whole.vdb");
+                         write(sphere(openvdb::Vec3d(1)), d + "/whole.vdb");
                          const std::string bytes = slurp(d + "/whole.vdb");
                          std::ofstream(d + "/in.vdb", std::ios::binary) << bytes.substr(0, cut < 0 ? bytes.size() - 1 : size_t(cut));
                          std::remove((d + "/whole.vdb").c_str());
                      }, "in.vdb -o out.ply", 1, cut < 40 ? "in.vdb: " : "truncated or damaged OpenVDB file"});
     }
     // ---- resources and options
-    c.push_back({"memory_above_max_memory", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"memory_above_max_memory", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --max-memory 10M -o out.ply", 1, "exceeds the limit of 10 MiB"});
-    c.push_back({"max_memory_not_a_size", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"max_memory_not_a_size", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --max-memory lots -o out.ply", 2, "--max-memory: 'lots' is not a size"});
-    c.push_back({"max_memory_zero_is_no_limit", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"max_memory_zero_is_no_limit", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --max-memory 0 -o out.ply", 0, "", true});
-    c.push_back({"ratio_nan", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"ratio_nan", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --ratio nan -o out.ply", 2, "ratio"});
-    c.push_back({"iso_inf", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"iso_inf", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --iso inf -o out.ply", 2, "--iso must be a finite number"});
-    c.push_back({"faces_huge", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"faces_huge", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb --faces 18446744073709551615 -o out.ply", 0, "", true});
     // ---- bad output places (the read-only directory and the full disk have their own tests)
     c.push_back({"output_is_a_directory", [](const std::string& d) {
-                     write(sphere(1.0), d + "/in.vdb");
+                     write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
                      std::system(("mkdir '" + d + "/out.ply'").c_str());
                  }, "in.vdb -o out.ply", 1, "out.ply: cannot create output file (Is a directory)"});
     c.push_back({"output_parent_is_a_file", [](const std::string& d) {
-                     write(sphere(1.0), d + "/in.vdb");
+                     write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
                      std::ofstream(d + "/file.vdb") << "x";
                  }, "in.vdb -o file.vdb/out.ply", 1, "cannot create output file (Not a directory)"});
     c.push_back({"output_links_to_dev_full", [](const std::string& d) {
-                     write(sphere(1.0), d + "/in.vdb");
+                     write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
                      std::system(("ln -s /dev/full '" + d + "/out.ply'").c_str());
                  }, "in.vdb -o out.ply", 1, "out.ply: write failed (No space left on device)"});
-    c.push_back({"report_to_dev_full", [](const std::string& d) { write(sphere(1.0), d + "/in.vdb"); },
+    c.push_back({"report_to_dev_full", [](const std::string& d) { write(sphere(openvdb::Vec3d(1)), d + "/in.vdb"); },
                  "in.vdb -o out.ply --report /dev/full", 1, "/dev/full: cannot write report (No space left on device)", true});
     return c;
 }
@@ -366,9 +378,14 @@ TEST_P(Interrupt, StopsWithinOneSecondAndLeavesNothing)
     const std::string d = freshDir("interrupt_" + std::to_string(sig) + "_" + std::to_string(int(delay * 10)));
     const Interrupted r = interrupt(d, {VDB_ISOSIMP_EXE, vol, "-q", "-r", "0.1", "-o", "out.ply", "--report", "r.json"}, sig, delay);
     ASSERT_NE(r.code, -2000) << "the run ended before the signal: use a larger volume";
-    EXPECT_EQ(r.code, 128 + sig) << r.err;
     EXPECT_LT(r.stopSeconds, 1.0);
-    EXPECT_NE(r.err.find("interrupted"), std::string::npos) << r.err;
+    if (delay < 0.2 && r.code == -sig) {
+        // Before main installs its handlers (libraries still loading) the default action applies:
+        // the process dies by the signal, before it could have created any file.
+    } else {
+        EXPECT_EQ(r.code, 128 + sig) << r.err;
+        EXPECT_NE(r.err.find("interrupted"), std::string::npos) << r.err;
+    }
     EXPECT_EQ(leftovers(d), "") << "files left behind";
     std::printf("signal %d after %.1f s: exit %d, stopped in %.3f s\n", sig, delay, r.code, r.stopSeconds);
 }
@@ -443,7 +460,7 @@ struct ReadOnlyDir {
 TEST(DiskFaults, ReadOnlyDirectory)
 {
     const std::string d = freshDir("readonly");
-    write(sphere(1.0), d + "/in.vdb");
+    write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
     ReadOnlyDir ro(d + "/ro");
     if (!ro.ok) GTEST_SKIP() << "cannot make a read-only directory here (" << ro.how << ")";
     const RunResult r = run(d, VDB_ISOSIMP_EXE, "in.vdb -q -o ro/out.ply");
@@ -453,7 +470,8 @@ TEST(DiskFaults, ReadOnlyDirectory)
         << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_EQ(listDir(ro.path), "");
-    const RunResult c = run(d, RAW2VDB_EXE, "in.vdb --dims 1,1,1 --type u8 -q -o ro/out.vdb");
+    std::ofstream(d + "/one.raw", std::ios::binary) << '\1';
+    const RunResult c = run(d, RAW2VDB_EXE, "one.raw --dims 1,1,1 --type u8 -q -o ro/out.vdb");
     EXPECT_EQ(c.code, 1) << c.err;
     EXPECT_NE(c.err.find("ro/out.vdb"), std::string::npos) << c.err;
     EXPECT_EQ(listDir(ro.path), "");
@@ -462,7 +480,7 @@ TEST(DiskFaults, ReadOnlyDirectory)
 TEST(DiskFaults, DevFull)
 {
     const std::string d = freshDir("devfull");
-    write(sphere(1.0), d + "/in.vdb");
+    write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
     std::system(("ln -s /dev/full '" + d + "/full.ply' && ln -s /dev/full '" + d + "/full.vdb'").c_str());
     // The mesh goes into the device (not a renamed file over it) and the failure is reported.
     RunResult r = run(d, VDB_ISOSIMP_EXE, "in.vdb -q -o full.ply");
@@ -485,14 +503,16 @@ TEST(DiskFaults, DevFull)
     EXPECT_TRUE(S_ISCHR(st.st_mode));
     ASSERT_EQ(::lstat((d + "/full.ply").c_str(), &st), 0);
     EXPECT_TRUE(S_ISLNK(st.st_mode));
-    EXPECT_EQ(leftovers(d), "full.ply\nfull.vdb\nok.ply\n");
+    ASSERT_EQ(::lstat((d + "/full.vdb").c_str(), &st), 0);
+    EXPECT_TRUE(S_ISLNK(st.st_mode));
+    EXPECT_EQ(leftovers(d), "full.ply\nok.ply\n");
 }
 
 // A real file system that fills up mid-write: a 64 KiB tmpfs (needs the right to mount, as in CI).
 TEST(DiskFaults, FullFileSystem)
 {
     const std::string d = freshDir("fullfs");
-    write(sphere(1.0), d + "/in.vdb");
+    write(sphere(openvdb::Vec3d(1)), d + "/in.vdb");
     const std::string mnt = d + "/small";
     std::system(("mkdir -p '" + mnt + "'").c_str());
     if (::mount("tmpfs", mnt.c_str(), "tmpfs", 0, "size=64k") != 0) GTEST_SKIP() << "cannot mount a tmpfs here";
