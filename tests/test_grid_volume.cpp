@@ -1,0 +1,76 @@
+// volumeFromGrid (an in-memory grid, read only) gives what Volume::open gives for the same grid read
+// from a file: the same info, block list, samples and value range; and it never frees the caller's voxels.
+#include "grid_volume.h"
+#include "test_grids.h"
+
+#include "errors.h"
+
+#include <gtest/gtest.h>
+
+namespace vi = vdb_isosimp;
+namespace vt = vdb_isosimp::testing;
+
+namespace {
+
+void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
+{
+    grid->setName(name);
+    const auto fromFile = vi::Volume::open(vt::writeGrid(grid, "gridvolume_" + name), "");
+    const auto inMemory = vi::volumeFromGrid(grid, "in-memory grid '" + name + "'");
+    const vi::VolumeInfo &a = fromFile->info(), &b = inMemory->info();
+    EXPECT_EQ(a.gridName, b.gridName);
+    EXPECT_EQ(a.valueType, b.valueType);
+    EXPECT_EQ(a.levelSet, b.levelSet);
+    EXPECT_EQ(a.indexToWorld.m, b.indexToWorld.m);
+    EXPECT_EQ(a.background, b.background);
+    EXPECT_EQ(a.leafCount, b.leafCount);
+    EXPECT_EQ(a.activeVoxels, b.activeVoxels);
+    EXPECT_EQ(fromFile->valueRange(), inMemory->valueRange());
+
+    vi::Classifier c;
+    c.insideBelow = a.levelSet;
+    c.iso = a.levelSet ? 0.0 : 0.5;
+    const auto blocks = fromFile->blocks(c);
+    ASSERT_EQ(blocks, inMemory->blocks(c));
+    ASSERT_FALSE(blocks.empty());
+    vi::BlockSamples s1, s2;
+    for (const auto& o : blocks) {
+        fromFile->sample(o, s1);
+        inMemory->sample(o, s2);
+        ASSERT_EQ(s1.values, s2.values);
+        inMemory->releaseLeaf(o);
+    }
+    for (auto leaf = grid->tree().cbeginLeaf(); leaf; ++leaf) ASSERT_FALSE(leaf->buffer().empty());
+}
+
+} // namespace
+
+TEST(GridVolume, SameAsTheFileReader)
+{
+    openvdb::initialize();
+    for (unsigned seed : {1u, 2u, 3u}) {
+        vt::GridSpec spec;
+        spec.seed = seed;
+        spec.levelSet = seed != 2;
+        spec.mirrored = seed == 3;
+        spec.bigTile = seed == 1;
+        expectSameVolume(vt::randomSparseGrid(spec), "g" + std::to_string(seed));
+    }
+}
+
+TEST(GridVolume, RejectsWhatTheFileReaderRejects)
+{
+    openvdb::initialize();
+    auto vec = openvdb::Vec3SGrid::create();
+    vec->setName("vel");
+    try {
+        vi::volumeFromGrid(vec, "in-memory grid 'vel'");
+        ADD_FAILURE();
+    } catch (const vi::InputError& e) {
+        EXPECT_STREQ(e.what(), "in-memory grid 'vel': grid 'vel' has value type vec3s; only float and double grids "
+                               "can be meshed");
+    }
+    auto empty = openvdb::FloatGrid::create(1.0f);
+    empty->setName("nothing");
+    EXPECT_THROW(vi::volumeFromGrid(empty, "x"), vi::InputError);
+}
