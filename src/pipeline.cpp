@@ -45,20 +45,33 @@ void checkOptions(const Options& o)
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
 }
 
-// Exact face count of the full-resolution surface: the same case table over the same blocks.
-uint64_t countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, const Classifier& cls)
+// Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
+// on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
+// (blocks in order, as in extraction), so counting does not load the whole volume at once.
+uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, const Classifier& cls)
 {
-    return tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(0, blocks.size(), 16), uint64_t(0),
-        [&](const tbb::blocked_range<size_t>& r, uint64_t n) {
-            BlockSamples s;
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                vol.sample(blocks[i], s);
-                n += countBlockTriangles(s, cls);
-            }
-            return n;
-        },
-        [](uint64_t a, uint64_t b) { return a + b; });
+    uint64_t total = 0;
+    size_t next = 0;
+    tbb::parallel_pipeline(
+        4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
+        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
+                                       [&](tbb::flow_control& fc) -> size_t {
+                                           if (next == blocks.size()) { fc.stop(); return 0; }
+                                           return next++;
+                                       }) &
+            tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel,
+                                                                  [&](size_t i) {
+                                                                      BlockSamples s;
+                                                                      vol.sample(blocks[i], s);
+                                                                      return std::make_pair(i, countBlockTriangles(s, cls));
+                                                                  }) &
+            tbb::make_filter<std::pair<size_t, uint64_t>, void>(tbb::filter_mode::serial_in_order,
+                                                                [&](std::pair<size_t, uint64_t> r) {
+                                                                    total += r.second;
+                                                                    vol.releaseLeaf(blocks[r.first]);
+                                                                    if (r.first % 64 == 0) vol.trimInputMapping();
+                                                                }));
+    return total;
 }
 
 // What one slab's integrator measured; merged into the Report in slab order.
@@ -233,7 +246,8 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
     // Targets.
     double ratio = opt.ratio;
     if (opt.targetFaces > 0) {
-        rep.facesFull = countFaces(*vol, blocks, cls);
+        std::unique_ptr<Volume> copy = Volume::open(path, opt.gridName);
+        rep.facesFull = countFaces(*copy, blocks, cls);
         if (rep.facesFull == 0) throw noSurface();
         ratio = std::min(1.0, double(opt.targetFaces) / double(rep.facesFull));
     }
@@ -289,6 +303,7 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
                         std::lock_guard<std::mutex> lock(progressMutex);
                         sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         ++done;
+                        if (done % 64 == 0) vol->trimInputMapping();
                         if (progress && (done % 256 == 0 || done == blocks.size()) &&
                             !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))
                             throw Cancelled("cancelled");

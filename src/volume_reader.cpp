@@ -12,6 +12,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <sys/mman.h>
 #include <fstream>
 #include <mutex>
 #include <sstream>
@@ -170,6 +174,22 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
 } // namespace
+
+void Volume::trimInputMapping() const
+{
+    char resolved[PATH_MAX];
+    if (!::realpath(mInfo.file.c_str(), resolved)) return;
+    const std::string target = resolved;
+    std::ifstream maps("/proc/self/maps");
+    std::string line;
+    while (std::getline(maps, line)) {
+        // "start-end perms offset dev inode   path"
+        if (line.size() < target.size() || line.compare(line.size() - target.size(), target.size(), target) != 0) continue;
+        unsigned long start = 0, end = 0;
+        if (std::sscanf(line.c_str(), "%lx-%lx", &start, &end) != 2 || end <= start) continue;
+        ::madvise(reinterpret_cast<void*>(start), end - start, MADV_DONTNEED);
+    }
+}
 
 std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName)
 {

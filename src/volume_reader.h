@@ -48,6 +48,11 @@ public:
     // integrated its voxels are dead: live voxel data stays about one layer of blocks. Call from the
     // in-order stage only; no block after L reads L, so concurrent extraction is unaffected.
     virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    // Delayed loading maps the input file; the pages read so far stay counted in the process's
+    // resident memory although the voxels they held were decoded long ago. Drops those pages from
+    // this process (they stay in the page cache and fault back in if read again), so resident memory
+    // follows the output rather than the input file. Safe while other threads read the file.
+    void trimInputMapping() const;
     // Smallest and largest value stored in the grid (voxels, tiles and background).
     virtual std::array<double, 2> valueRange() const = 0;
 
