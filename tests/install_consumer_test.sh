@@ -32,4 +32,15 @@ out2=$("$work/consumer/simplify_sphere" "$work/c.ply" "$src/examples/data/torus_
 echo "$out2"
 faces=$(sed -n 's/.*"faces_out": \([0-9]*\).*/\1/p' "$work/p.json")
 [[ "$out2" == *" -> $faces faces"* ]] || { echo "consumer and program disagree: $faces faces vs '$out2'"; exit 1; }
+# The installed Python module, if this build has one, imports from the prefix alone and agrees.
+for dir in "$work"/prefix/lib/python3*/dist-packages; do
+  [ -d "$dir" ] || continue
+  out3=$(PYTHONPATH="$dir" /usr/bin/python3 -c "
+import vdb_isosimp, sys
+assert vdb_isosimp.__file__.startswith('$work/prefix/'), vdb_isosimp.__file__
+v, f, r = vdb_isosimp.simplify(sys.argv[1], ratio=0.1)
+print(len(f))" "$src/examples/data/torus_levelset.vdb")
+  [ "$out3" = "$faces" ] || { echo "installed Python module: $out3 faces, program: $faces"; exit 1; }
+  echo "installed Python module in $dir: $out3 faces"
+done
 echo "install consumer test passed"
