@@ -125,6 +125,15 @@ void checkIndices(const Mesh& mesh)
         if (t[0] >= n || t[1] >= n || t[2] >= n) throw OutputError("mesh has a vertex index out of range");
 }
 
+// No format can say what a NaN or infinite position means (and glTF's JSON cannot even hold one).
+void checkFinite(const Mesh& mesh)
+{
+    for (size_t i = 0; i < mesh.points.size(); ++i)
+        for (float c : mesh.points[i])
+            if (!std::isfinite(c))
+                throw OutputError("vertex " + std::to_string(i) + " has a non-finite coordinate");
+}
+
 void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
 {
     std::vector<std::array<float, 3>> normals;
@@ -350,6 +359,7 @@ void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& op
     const MeshFormat format = formatForPath(path, options.ascii);
     try {
         checkIndices(mesh);
+        checkFinite(mesh);
     } catch (const OutputError& e) {
         throw OutputError(path + ": " + e.what());
     }

@@ -32,7 +32,8 @@ struct WriteOptions {
 // unsupported extension, or for `ascii` with anything but .ply.
 MeshFormat formatForPath(const std::string& path, bool ascii = false);
 
-// Writes `mesh` to `path`. @throw OutputError naming the file.
+// Writes `mesh` to `path`. @throw OutputError naming the file (also for an index out of range or a
+// non-finite position, before anything is created).
 void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& options);
 // Same, binary PLY / by extension, with `comment` as the only option.
 void writeMesh(const Mesh& mesh, const std::string& path, const std::string& comment = {});

@@ -233,6 +233,14 @@ TEST(Formats, BadExtensionsFailWithoutLeavingFiles)
     fails("noext", false, "unsupported output format");
     fails("m.obj", true, "only available for .ply");
     fails("m.glb", true, "only available for .ply");
+    vi::Mesh nan = m;
+    nan.points[7][1] = std::nanf("");
+    try {
+        vi::writeMesh(nan, d + "/nan.glb", vi::WriteOptions{});
+        ADD_FAILURE() << "a NaN position was written";
+    } catch (const vi::OutputError& e) {
+        EXPECT_NE(std::string(e.what()).find("vertex 7 has a non-finite coordinate"), std::string::npos) << e.what();
+    }
     EXPECT_EQ(vi::formatForPath("A.GLB"), vi::MeshFormat::Glb);
     EXPECT_EQ(vi::formatForPath("x.Ply", true), vi::MeshFormat::PlyAscii);
     FILE* p = popen(("ls -A '" + d + "'").c_str(), "r");
