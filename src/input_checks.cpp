@@ -230,33 +230,6 @@ std::string formatBytes(uint64_t b)
     return buf;
 }
 
-bool parseMemorySize(const std::string& text, uint64_t& bytes)
-{
-    size_t i = 0;
-    while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
-    size_t j = i;
-    while (j < text.size() && ((text[j] >= '0' && text[j] <= '9') || text[j] == '.')) ++j;
-    const std::string number = text.substr(i, j - i);
-    if (number.empty() || std::count(number.begin(), number.end(), '.') > 1 || number == ".") return false;
-    std::string unit;
-    for (size_t k = j; k < text.size(); ++k)
-        if (text[k] != ' ' && text[k] != '\t') unit += char(std::toupper(static_cast<unsigned char>(text[k])));
-    double scale = 1;
-    if (unit.empty() || unit == "B") scale = 1;
-    else {
-        static const char units[] = "KMGT";
-        const char* p = unit.size() <= 3 ? std::strchr(units, unit[0]) : nullptr;
-        if (!p || unit[0] == '\0') return false;
-        const std::string rest = unit.substr(1);
-        if (!(rest.empty() || rest == "B" || rest == "IB")) return false;
-        scale = std::pow(1024.0, double(p - units + 1));
-    }
-    const double v = std::strtod(number.c_str(), nullptr) * scale;
-    if (!std::isfinite(v) || v < 0 || v >= 1.8e19) return false;
-    bytes = uint64_t(v);
-    return true;
-}
-
 MemoryEstimate checkMemoryBudget(const std::string& path, const Options& options, uint64_t limit)
 {
     const std::unique_ptr<Volume> vol = Volume::open(path, options.gridName);

@@ -50,10 +50,6 @@ uint64_t machineMemoryBytes();
 // "1.5 GiB", "300 MiB".
 std::string formatBytes(uint64_t bytes);
 
-// Parses a memory size: a number with an optional unit K, M, G, T (powers of 1024; "KB", "KiB",
-// "G" ... accepted, case-insensitive), or "0" for no limit. False on anything else or overflow.
-bool parseMemorySize(const std::string& text, uint64_t& bytes);
-
 // Opens the grid (topology only), estimates the run's memory and throws InputError naming the file
 // when it exceeds `limitBytes` (0: no limit). Returns the estimate.
 MemoryEstimate checkMemoryBudget(const std::string& path, const Options& options, uint64_t limitBytes);

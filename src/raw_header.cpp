@@ -70,6 +70,8 @@ uint64_t fileSize(const std::string& path)
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) throw RawInputError(path, "cannot open: " + sysError());
     if (S_ISDIR(st.st_mode)) throw RawInputError(path, "cannot read: is a directory");
+    // Devices and FIFOs have no size to check against and may never end (/dev/zero, /dev/stdin).
+    if (!S_ISREG(st.st_mode)) throw RawInputError(path, "cannot read: not a regular file");
     return static_cast<uint64_t>(st.st_size);
 }
 
@@ -145,6 +147,7 @@ std::string readPrefix(const std::string& path, std::size_t maxBytes)
 uint64_t skipLines(const std::string& path, uint64_t offset, int64_t lines)
 {
     if (lines <= 0) return offset;
+    fileSize(path);  // a regular file: the scan ends at its end
     FILE* f = std::fopen(path.c_str(), "rb");
     if (!f) throw RawInputError(path, "cannot open: " + sysError());
     if (fseeko(f, static_cast<off_t>(offset), SEEK_SET) != 0) {
@@ -567,6 +570,9 @@ RawVolumeInfo readNifti(const std::string& path)
     float pixdim[8];
     for (int i = 0; i < 8; ++i) pixdim[i] = h.get<float>(76 + 4 * i);
     const float voxOffset = h.get<float>(108);
+    // A float in the header: NaN, negative or huge values would not convert to a byte offset.
+    if (!(voxOffset >= 0.0f && voxOffset < 4.0e15f))
+        throw RawInputError(path, "invalid NIfTI vox_offset " + std::to_string(voxOffset));
     if (!analyze) {
         const float slope = h.get<float>(112), inter = h.get<float>(116);
         if (slope != 0.0f && std::isfinite(slope)) {

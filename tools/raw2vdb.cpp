@@ -1,6 +1,7 @@
 // raw2vdb: converts a dense volume (raw, NRRD, MetaImage, NIfTI-1) into an OpenVDB .vdb file.
 // Thin front end over raw_converter.h: parse the command line, one library call, one error line.
 // Exit codes: 0 success, 1 bad input or unwritable output, 2 usage error.
+#include "cli_numbers.h"
 #include "raw_converter.h"
 
 #include <CLI/CLI.hpp>
@@ -17,39 +18,12 @@
 
 namespace {
 
-struct UsageError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
+using UsageError = vdb_isosimp::CliUsageError;
 
-/// "a,b,c" (or "AxBxC" for sizes) -> n numbers; throws UsageError naming the option.
 template <typename T>
 std::vector<T> parseList(const std::string& option, const std::string& text, std::size_t n, bool allowX)
 {
-    std::string s = text;
-    if (allowX)
-        for (char& c : s)
-            if (c == 'x' || c == 'X') c = ',';
-    std::vector<T> out;
-    std::stringstream ss(s);
-    std::string part;
-    while (std::getline(ss, part, ',')) {
-        std::size_t used = 0;
-        T v{};
-        try {
-            if constexpr (std::is_same_v<T, double>) v = std::stod(part, &used);
-            else {
-                if (part.find('-') != std::string::npos) throw std::invalid_argument("negative");
-                v = std::stoull(part, &used);
-            }
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        while (used < part.size() && std::isspace(static_cast<unsigned char>(part[used]))) ++used;
-        if (part.empty() || used != part.size()) throw UsageError(option + ": '" + text + "' is not a list of " + std::to_string(n) + " numbers");
-        out.push_back(v);
-    }
-    if (out.size() != n) throw UsageError(option + ": expected " + std::to_string(n) + " comma-separated numbers, got '" + text + "'");
-    return out;
+    return vdb_isosimp::parseNumberList<T>(option, text, n, allowX);
 }
 
 // Interrupted (Ctrl-C, kill): remove the temporary output (convertRawToVdb writes OUT.tmp.<pid>) and

@@ -1,5 +1,6 @@
 // vdb_isosimp IN.vdb: parse the command line, run one library call, report. Errors become one line on
 // stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
+#include "cli_numbers.h"
 #include "errors.h"
 #include "input_checks.h"
 #include "mesh_writer.h"
