@@ -6,7 +6,8 @@ PKGS=(build-essential cmake pkg-config
       libopenvdb-dev libboost-iostreams-dev libtbb-dev libopenmesh-dev libcli11-dev
       libgtest-dev libgmock-dev zlib1g-dev time
       libmeshoptimizer-dev python3-vtk9
-      libtinygltf-dev pybind11-dev libboost-python-dev python3-dev python3-numpy python3-openvdb blender)
+      libtinygltf-dev pybind11-dev libboost-python-dev python3-dev python3-numpy python3-openvdb blender
+      clang libclang-rt-14-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
