@@ -8,6 +8,7 @@
 #include "edge_key.h"
 #include "errors.h"
 #include "marching_cubes.h"
+#include "pipeline_internal.h"
 #include "run_stats.h"
 #include "volume_reader.h"
 
@@ -19,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -194,7 +196,8 @@ std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t coun
 
 } // namespace
 
-static Result simplifyFileUnprefixed(const std::string& path, const Options& opt, Progress* progress)
+static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, const std::string& path,
+                          const Options& opt, Progress* progress)
 {
     Stopwatch clock;
     checkOptions(opt);
@@ -203,7 +206,7 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
         threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, opt.threads);
 
     // Open.
-    std::unique_ptr<Volume> vol = Volume::open(path, opt.gridName);
+    std::unique_ptr<Volume> vol = open();
     const VolumeInfo& info = vol->info();
     Result result;
     Report& rep = result.report;
@@ -246,7 +249,7 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
     // Targets.
     double ratio = opt.ratio;
     if (opt.targetFaces > 0) {
-        std::unique_ptr<Volume> copy = Volume::open(path, opt.gridName);
+        std::unique_ptr<Volume> copy = open();
         rep.facesFull = countFaces(*copy, blocks, cls);
         if (rep.facesFull == 0) throw noSurface();
         ratio = std::min(1.0, double(opt.targetFaces) / double(rep.facesFull));
@@ -349,16 +352,22 @@ static Result simplifyFileUnprefixed(const std::string& path, const Options& opt
 
 }
 
-Result simplifyFile(const std::string& path, const Options& opt, Progress* progress)
+Result simplifyVolume(const std::function<std::unique_ptr<Volume>()>& open, const std::string& name,
+                      const Options& opt, Progress* progress)
 {
-    // Every input error names the file, whichever stage found it.
+    // Every input error names the input, whichever stage found it.
     try {
-        return simplifyFileUnprefixed(path, opt, progress);
+        return runPipeline(open, name, opt, progress);
     } catch (const InputError& e) {
         const std::string what = e.what();
-        if (what.compare(0, path.size() + 1, path + ":") == 0) throw;
-        throw InputError(path + ": " + what);
+        if (what.compare(0, name.size() + 1, name + ":") == 0) throw;
+        throw InputError(name + ": " + what);
     }
+}
+
+Result simplifyFile(const std::string& path, const Options& opt, Progress* progress)
+{
+    return simplifyVolume([&] { return Volume::open(path, opt.gridName); }, path, opt, progress);
 }
 
 } // namespace vdb_isosimp

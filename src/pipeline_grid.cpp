@@ -1,13 +1,13 @@
 // The library entry points around simplifyFile(): a grid already in memory, and the streaming
 // variants that hand the final mesh to a MeshSink.
 //
-// simplifyGrid() hands the grid to the file pipeline through a temporary .vdb holding a shallow copy
-// of it (the tree is shared, not copied, while it is written). The pipeline opens its input through
-// Volume::open(path), and releases voxel buffers as blocks finish, which a caller's grid must not
-// undergo; a direct path needs the pipeline to accept an already-open, read-only volume.
+// simplifyGrid() runs the same pipeline over volumeFromGrid(), a read-only view of the caller's grid
+// (its voxel buffers are never released).
 #include "vdb_isosimp.h"
 
 #include "errors.h"
+#include "grid_volume.h"
+#include "pipeline_internal.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -24,36 +24,6 @@ namespace {
 bool isScalar(const openvdb::GridBase& g)
 {
     return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>();
-}
-
-// A temporary .vdb removed when it goes out of scope.
-class TempVdb {
-public:
-    TempVdb()
-    {
-        const char* dir = std::getenv("TMPDIR");
-        std::string pattern = std::string(dir && *dir ? dir : "/tmp") + "/vdb_isosimp_grid_XXXXXX.vdb";
-        const int fd = ::mkstemps(pattern.data(), 4);
-        if (fd < 0) throw InputError("cannot create a temporary file in " + pattern.substr(0, pattern.rfind('/')));
-        ::close(fd);
-        mPath = pattern;
-    }
-    ~TempVdb() { std::remove(mPath.c_str()); }
-    TempVdb(const TempVdb&) = delete;
-    TempVdb& operator=(const TempVdb&) = delete;
-    const std::string& path() const { return mPath; }
-
-private:
-    std::string mPath;
-};
-
-// Messages of the file pipeline start with the path; the caller knows no such file.
-std::string renamed(const std::string& what, const std::string& path, const std::string& label)
-{
-    std::string s = what;
-    for (size_t at = s.find(path); at != std::string::npos; at = s.find(path, at + label.size()))
-        s.replace(at, path.size(), label);
-    return s;
 }
 
 // Hands a finished mesh to a sink in pieces, freeing the points before the triangles go out.
@@ -81,24 +51,11 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
     if (!isScalar(grid))
         throw InputError(label + ": value type " + grid.valueType() + "; only float and double grids can be meshed");
 
-    TempVdb tmp;
-    try {
-        openvdb::GridCPtrVec grids{grid.copyGrid()};  // shares the tree
-        openvdb::io::File(tmp.path()).write(grids);
-    } catch (const std::exception& e) {
-        throw InputError(label + ": cannot stage the grid in " + tmp.path() + " (" + e.what() + ")");
-    }
-    Options o = options;
-    o.gridName.clear();  // the file holds this grid alone
-    try {
-        Result r = simplifyFile(tmp.path(), o, progress);
-        r.report.file.clear();
-        return r;
-    } catch (const InputError& e) {
-        throw InputError(renamed(e.what(), tmp.path(), label));
-    } catch (const EmptySurfaceError& e) {
-        throw EmptySurfaceError(renamed(e.what(), tmp.path(), label));
-    }
+    // Read the caller's grid in place: the grid volume never frees voxel buffers.
+    openvdb::GridBase::ConstPtr g = grid.copyGrid();  // shares the tree
+    Result r = simplifyVolume([&] { return volumeFromGrid(g, label); }, label, options, progress);
+    r.report.file.clear();
+    return r;
 }
 
 Report simplifyFile(const std::string& vdbPath, const Options& options, MeshSink& sink, Progress* progress)
