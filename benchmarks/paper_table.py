@@ -269,6 +269,7 @@ def main():
     ap.add_argument("--trace-batches", required=True)
     ap.add_argument("--seconds", type=int, default=0)
     ap.add_argument("--build-seconds", type=int, default=0)
+    ap.add_argument("--load", default="", help="load averages (1, 5, 15 min) at start / end")
     a = ap.parse_args()
     rd = a.results
     with open(f"{rd}/sets.txt") as f:
@@ -278,7 +279,8 @@ def main():
            "",
            f"Produced by `{a.command}` on {datetime.date.today().isoformat()} "
            f"({a.seconds // 60} min {a.seconds % 60} s end to end, of which {a.build_seconds} s building), "
-           f"on {machine()}. Hou & Chen, section 5: Table 3 and Figures 5, 7 and 9.",
+           f"on {machine()}" + (f"; load averages (1/5/15 min) at start / end: {a.load}" if a.load else "") +
+           ". Hou & Chen, section 5: Table 3 and Figures 5, 7 and 9.",
            "",
            "## Data sets (cf. Tables 2 and 5)",
            "",

@@ -17,6 +17,7 @@ OUT=${1:-docs}
 mkdir -p "$OUT"
 COMMAND="benchmarks/paper_table.sh $([ $QUICK = 1 ] && echo '--quick ')$OUT"
 START=$(date +%s)
+LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg)
 
 ./scripts/deps.sh
 # Plots: Debian's matplotlib for Debian's python3 (only this benchmark needs it).
@@ -108,5 +109,6 @@ done
 
 END=$(date +%s)
 /usr/bin/python3 benchmarks/paper_table.py "$R_DIR" "$OUT" --command "$COMMAND" \
-  --sweep "$BATCHES" --trace-batches "$TRACE_B" --seconds $((END - START)) --build-seconds $((BUILD_END - START))
+  --sweep "$BATCHES" --trace-batches "$TRACE_B" --seconds $((END - START)) --build-seconds $((BUILD_END - START)) \
+  --load "$LOAD_START / $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "wrote $OUT/paper_table.md and $OUT/paper_fig*.png in $((END - START)) s"
