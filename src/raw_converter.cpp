@@ -276,7 +276,12 @@ openvdb::math::Transform::Ptr makeTransform(const RawVolumeInfo& info)
     for (int axis = 0; axis < 3; ++axis)
         for (int w = 0; w < 3; ++w) m[axis][w] = info.direction[w][axis] * info.spacing[axis];
     for (int w = 0; w < 3; ++w) m[3][w] = info.origin[w];
-    return openvdb::math::Transform::createLinearTransform(m);
+    try {
+        return openvdb::math::Transform::createLinearTransform(m);
+    } catch (const openvdb::Exception& e) {
+        // OpenVDB refuses maps it considers singular (|det| below ~1e-15: e.g. voxels under 1e-5).
+        throw RawInputError(info.headerFile, std::string("voxel spacing and directions OpenVDB cannot represent (") + e.what() + ")");
+    }
 }
 
 openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvertOptions& options, RawConvertStats* stats)
