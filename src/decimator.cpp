@@ -1,5 +1,7 @@
 #include "decimator.h"
 
+#include "errors.h"
+
 #include <algorithm>
 #include <cmath>
 #include <iterator>
@@ -361,6 +363,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
 {
     size_t collapses = 0;
     while (mFaceCount > targetFaces && !mHeap.empty()) {
+        if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = heapPop(mHeap);
         const Vertex& va = mVerts[c.a];
         const Vertex& vb = mVerts[c.b];

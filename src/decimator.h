@@ -11,6 +11,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <unordered_map>
 #include <vector>
 
@@ -51,6 +52,10 @@ public:
     // final pass relaxes it when small closed components (noise, scans) would otherwise keep the
     // mesh above its target.
     void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
+
+    // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
+    // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
+    void setInterrupter(std::function<bool()> stop) { mStop = std::move(stop); }
 
     size_t faceCount() const { return mFaceCount; }
     size_t vertexCount() const { return mVertexCount; }
@@ -102,6 +107,8 @@ private:
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0;
     double mMinNormalCos = 0.17;
+    std::function<bool()> mStop;
+    uint64_t mPolls = 0;
     std::vector<uint32_t> mScratchA, mScratchB, mScratchC;
 };
 

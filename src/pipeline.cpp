@@ -267,6 +267,13 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     released = true;
     std::mutex progressMutex;
     size_t done = 0;
+    // Decimation passes poll the same progress object, so a cancel request stops them too.
+    if (progress)
+        for (auto& integ : integs)
+            integ->decimator().setInterrupter([&, d = &integ->decimator()] {
+                std::lock_guard<std::mutex> lock(progressMutex);
+                return !progress->update(double(done) / double(blocks.size()), d->faceCount());
+            });
     auto runSlab = [&](size_t si) {
         const Slab& slab = slabs[si];
         Integrator& integ = *integs[si];

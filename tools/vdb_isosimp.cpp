@@ -33,23 +33,37 @@ class TerminalProgress final : public Progress {
 public:
     bool update(double fraction, uint64_t facesKept) override
     {
+        // Called per block batch and, during decimation passes, every few thousand collapses: redraw
+        // at most five times a second. After the last block the final pass runs ("finishing").
         const double t = mClock.seconds();
-        if (fraction < 1.0 && t - mLast < 0.2) return true;
+        if (t - mLast < 0.2) return true;
         mLast = t;
         const int width = 30, filled = int(fraction * width);
         std::string bar(size_t(filled), '#');
         bar.resize(width, '.');
         const double eta = fraction > 0.01 ? t * (1.0 - fraction) / fraction : 0.0;
-        std::fprintf(stderr, "\r[%s] %5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", bar.c_str(), 100.0 * fraction,
-                     (unsigned long long)facesKept, t, eta);
-        if (fraction >= 1.0) std::fprintf(stderr, "\r%*s\r", 90, "");
+        if (fraction < 1.0)
+            std::fprintf(stderr, "\r[%s] %5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", bar.c_str(), 100.0 * fraction,
+                         (unsigned long long)facesKept, t, eta);
+        else
+            std::fprintf(stderr, "\r[%s] finishing: %llu faces kept  %.0fs          ", bar.c_str(),
+                         (unsigned long long)facesKept, t);
+        mShown = true;
         std::fflush(stderr);
         return true;
+    }
+
+    // Clears the bar's line before the summary or an error is printed.
+    void clear()
+    {
+        if (mShown) std::fprintf(stderr, "\r%*s\r", 90, "");
+        mShown = false;
     }
 
 private:
     Stopwatch mClock;
     double mLast = -1.0;
+    bool mShown = false;
 };
 
 // Interruption. SIGINT/SIGTERM/SIGHUP only record the signal (nothing else is safe in a handler).
@@ -322,6 +336,7 @@ int main(int argc, char** argv)
         }
     }
 
+    TerminalProgress bar;
     try {
         formatForPath(output, ascii);  // an unsupported extension fails before the long run
         probeWritable(output);
@@ -330,10 +345,10 @@ int main(int argc, char** argv)
             if (!p->empty()) temporaries.push_back(temporaryFor(*p));
         Watchdog watchdog(temporaries);
         checkMemoryBudget(input, opt, memoryLimit);
-        TerminalProgress bar;
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
         Result res = simplifyFile(input, opt, &progress);
+        bar.clear();
         if (gSignal.load()) throw Cancelled("interrupted");
         const Report& r = res.report;
         if (r.isoDefaulted && !quiet)
@@ -353,13 +368,16 @@ int main(int argc, char** argv)
                          (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
         return 0;
     } catch (const EmptySurfaceError& e) {
+        bar.clear();
         std::cerr << "vdb_isosimp: " << e.what() << "\n";
         return 3;
     } catch (const Cancelled&) {
+        bar.clear();
         std::cerr << "vdb_isosimp: interrupted\n";
         const int sig = gSignal.load();
         return 128 + (sig ? sig : SIGINT);
     } catch (const std::exception& e) {
+        bar.clear();
         std::cerr << "vdb_isosimp: " << e.what() << "\n";
         return 1;
     }
