@@ -1,5 +1,7 @@
 #include "mesh_writer.h"
 
+#include <tiny_gltf.h>
+
 #include "errors.h"
 
 #include <algorithm>
@@ -10,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -45,24 +48,6 @@ std::string oneLine(std::string s)
     for (char& c : s)
         if (c == '\n' || c == '\r' || c == '\0') c = ' ';
     return s;
-}
-
-std::string jsonString(const std::string& s)
-{
-    std::string o = "\"";
-    for (char c : s) {
-        if (c == '"' || c == '\\') {
-            o += '\\';
-            o += c;
-        } else if (static_cast<unsigned char>(c) < 0x20) {
-            char b[8];
-            std::snprintf(b, sizeof b, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
-            o += b;
-        } else {
-            o += c;
-        }
-    }
-    return o + "\"";
 }
 
 // %.9g: shortest form that still reads back as the same float.
@@ -250,74 +235,91 @@ void writeStl(const Mesh& mesh, Out& out, const WriteOptions& o)
     }
 }
 
+// glTF 2.0 binary through tinygltf (Debian's libtinygltf-dev): one node, one triangle primitive with
+// POSITION (+ NORMAL) and 32-bit indices in one buffer. The units and comment go into asset.extras.
 void writeGlb(const Mesh& mesh, Out& out, const WriteOptions& o)
 {
     if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
-    std::vector<std::array<float, 3>> normals;
-    if (o.normals) normals = vertexNormals(mesh);
     const uint64_t nv = mesh.points.size(), nt = mesh.triangles.size();
-    const bool hasMesh = nv > 0 && nt > 0;  // glTF accessors must not be empty
     const uint64_t posBytes = 12 * nv, nrmBytes = o.normals ? 12 * nv : 0, idxBytes = 12 * nt;
-    const uint64_t binBytes = hasMesh ? posBytes + nrmBytes + idxBytes : 0;  // multiple of 4 already
-
+    if (posBytes + nrmBytes + idxBytes + (1u << 20) > std::numeric_limits<uint32_t>::max())
+        throw OutputError("mesh too large for a .glb file (4 GiB at most); write .ply instead");
     const std::string name = o.objectName.empty() ? std::string("vdb_isosimp") : o.objectName;
-    std::string j = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"vdb_isosimp\",\"extras\":{\"units\":" +
-                    jsonString(std::string(kUnits).substr(7)) +
-                    (o.comment.empty() ? std::string() : ",\"comment\":" + jsonString(o.comment)) + "}},";
-    j += "\"scene\":0,\"scenes\":[{\"name\":" + jsonString(name) + ",\"nodes\":[0]}],";
-    j += "\"nodes\":[{\"name\":" + jsonString(name) + (hasMesh ? ",\"mesh\":0" : "") + "}]";
-    if (hasMesh) {
+
+    tinygltf::Model model;
+    model.asset.version = "2.0";
+    model.asset.generator = "vdb_isosimp";
+    tinygltf::Value::Object extras;
+    extras["units"] = tinygltf::Value(std::string(kUnits).substr(7));
+    if (!o.comment.empty()) extras["comment"] = tinygltf::Value(o.comment);
+    model.asset.extras = tinygltf::Value(extras);
+    tinygltf::Scene scene;
+    scene.name = name;
+    scene.nodes = {0};
+    model.scenes.push_back(scene);
+    model.defaultScene = 0;
+    tinygltf::Node node;
+    node.name = name;
+    if (nv > 0 && nt > 0) {  // glTF accessors must not be empty
+        node.mesh = 0;
+        tinygltf::Buffer buffer;
+        buffer.data.resize(posBytes + nrmBytes + idxBytes);
+        std::memcpy(buffer.data.data(), mesh.points.data(), posBytes);
+        if (o.normals) {
+            const auto normals = vertexNormals(mesh);
+            std::memcpy(buffer.data.data() + posBytes, normals.data(), nrmBytes);
+        }
+        std::memcpy(buffer.data.data() + posBytes + nrmBytes, mesh.triangles.data(), idxBytes);
+        model.buffers.push_back(std::move(buffer));
+
+        auto addView = [&](size_t offset, size_t length, int target) {
+            tinygltf::BufferView v;
+            v.buffer = 0;
+            v.byteOffset = offset;
+            v.byteLength = length;
+            v.target = target;
+            model.bufferViews.push_back(v);
+            return int(model.bufferViews.size() - 1);
+        };
+        auto addAccessor = [&](int view, int componentType, size_t count, int type) {
+            tinygltf::Accessor a;
+            a.bufferView = view;
+            a.componentType = componentType;
+            a.count = count;
+            a.type = type;
+            model.accessors.push_back(a);
+            return int(model.accessors.size() - 1);
+        };
+        tinygltf::Primitive prim;
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        prim.attributes["POSITION"] = addAccessor(addView(0, posBytes, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                  TINYGLTF_COMPONENT_TYPE_FLOAT, nv, TINYGLTF_TYPE_VEC3);
+        // POSITION needs its bounds.
         std::array<float, 3> lo = mesh.points[0], hi = mesh.points[0];
         for (const auto& p : mesh.points)
             for (size_t k = 0; k < 3; ++k) {
                 lo[k] = std::min(lo[k], p[k]);
                 hi[k] = std::max(hi[k], p[k]);
             }
-        auto vec3 = [](const std::array<float, 3>& v) {
-            std::string s = "[";
-            for (size_t k = 0; k < 3; ++k) {
-                if (k) s += ',';
-                appendFloat(s, v[k]);
-            }
-            return s + "]";
-        };
-        const std::string idxAccessor = o.normals ? "2" : "1";
-        j += ",\"meshes\":[{\"name\":" + jsonString(name) + ",\"primitives\":[{\"attributes\":{\"POSITION\":0" +
-             (o.normals ? std::string(",\"NORMAL\":1") : std::string()) + "},\"indices\":" + idxAccessor +
-             ",\"mode\":4}]}]";
-        j += ",\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":" + std::to_string(nv) +
-             ",\"type\":\"VEC3\",\"min\":" + vec3(lo) + ",\"max\":" + vec3(hi) + "}";
+        model.accessors.back().minValues = {lo[0], lo[1], lo[2]};
+        model.accessors.back().maxValues = {hi[0], hi[1], hi[2]};
         if (o.normals)
-            j += ",{\"bufferView\":1,\"componentType\":5126,\"count\":" + std::to_string(nv) + ",\"type\":\"VEC3\"}";
-        j += ",{\"bufferView\":" + idxAccessor + ",\"componentType\":5125,\"count\":" + std::to_string(3 * nt) +
-             ",\"type\":\"SCALAR\"}]";
-        j += ",\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":" + std::to_string(posBytes) +
-             ",\"target\":34962}";
-        if (o.normals)
-            j += ",{\"buffer\":0,\"byteOffset\":" + std::to_string(posBytes) +
-                 ",\"byteLength\":" + std::to_string(nrmBytes) + ",\"target\":34962}";
-        j += ",{\"buffer\":0,\"byteOffset\":" + std::to_string(posBytes + nrmBytes) +
-             ",\"byteLength\":" + std::to_string(idxBytes) + ",\"target\":34963}]";
-        j += ",\"buffers\":[{\"byteLength\":" + std::to_string(binBytes) + "}]";
+            prim.attributes["NORMAL"] = addAccessor(addView(posBytes, nrmBytes, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                    TINYGLTF_COMPONENT_TYPE_FLOAT, nv, TINYGLTF_TYPE_VEC3);
+        prim.indices = addAccessor(addView(posBytes + nrmBytes, idxBytes, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, 3 * nt, TINYGLTF_TYPE_SCALAR);
+        tinygltf::Mesh m;
+        m.name = name;
+        m.primitives.push_back(prim);
+        model.meshes.push_back(m);
     }
-    j += "}";
-    j.resize((j.size() + 3) & ~size_t(3), ' ');  // JSON chunk padded with spaces
+    model.nodes.push_back(node);
 
-    const uint64_t total = 12 + 8 + j.size() + (hasMesh ? 8 + binBytes : 0);
-    if (total > std::numeric_limits<uint32_t>::max())
-        throw OutputError("mesh too large for a .glb file (4 GiB at most); write .ply instead");
-    out.text("glTF");
-    out.pod(uint32_t(2));
-    out.pod(uint32_t(total));
-    out.pod(uint32_t(j.size()));
-    out.pod(uint32_t(0x4E4F534A));  // "JSON"
-    out.text(j);
-    if (!hasMesh) return;
-    out.pod(uint32_t(binBytes));
-    out.pod(uint32_t(0x004E4942));  // "BIN\0"
-    out.bytes(mesh.points.data(), posBytes);
-    if (o.normals) out.bytes(normals.data(), nrmBytes);
-    out.bytes(mesh.triangles.data(), idxBytes);
+    std::ostringstream glb;
+    tinygltf::TinyGLTF writer;
+    if (!writer.WriteGltfSceneToStream(&model, glb, /*prettyPrint=*/false, /*writeBinary=*/true))
+        throw OutputError("the glTF writer failed");
+    out.text(glb.str());
 }
 
 } // namespace
