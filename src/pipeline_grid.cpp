@@ -1,12 +1,12 @@
 // The library entry points around simplifyFile(): a grid already in memory, and the streaming
 // variants that hand the final mesh to a MeshSink.
 //
-// simplifyGrid() runs the same pipeline over volumeFromGrid(), a read-only view of the caller's grid
+// simplifyGrid() runs the same pipeline over Volume::fromGrid(), a read-only view of the caller's grid
 // (its voxel buffers are never released).
 #include "vdb_isosimp.h"
 
 #include "errors.h"
-#include "grid_volume.h"
+#include "volume_reader.h"
 #include "pipeline_internal.h"
 
 #include <openvdb/openvdb.h>
@@ -53,7 +53,7 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
 
     // Read the caller's grid in place: the grid volume never frees voxel buffers.
     openvdb::GridBase::ConstPtr g = grid.copyGrid();  // shares the tree
-    Result r = simplifyVolume([&] { return volumeFromGrid(g, label); }, label, options, progress);
+    Result r = simplifyVolume([&] { return Volume::fromGrid(g, label); }, label, options, progress);
     r.report.file.clear();
     return r;
 }

@@ -12,8 +12,7 @@ namespace vdb_isosimp {
 // The whole pipeline on the volume `open` returns (called once, after the options are checked):
 // `name` is what Report::file holds and what every InputError / EmptySurfaceError message starts
 // with. simplifyFile(path) is simplifyVolume([&] { return Volume::open(path, o.gridName); }, path, ...);
-// simplifyGrid() passes volumeFromGrid() (grid_volume.h), which reads the caller's grid in place.
-// To be defined in pipeline.cpp; until then simplifyGrid() goes through a temporary file.
+// simplifyGrid() passes Volume::fromGrid(), which reads the caller's grid in place.
 Result simplifyVolume(const std::function<std::unique_ptr<Volume>()>& open, const std::string& name,
                       const Options& options, Progress* progress);
 

@@ -35,7 +35,11 @@ std::string oneLine(std::string s)
 template <typename GridT>
 class VolumeT final : public Volume {
 public:
-    VolumeT(typename GridT::Ptr grid, VolumeInfo info) : mGrid(std::move(grid)) { mInfo = std::move(info); }
+    VolumeT(typename GridT::Ptr grid, VolumeInfo info, bool fromFile) : mGrid(std::move(grid))
+    {
+        mInfo = std::move(info);
+        mFromFile = fromFile;
+    }
 
     std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const override
     {
@@ -81,6 +85,7 @@ public:
 
     void releaseLeaf(const std::array<int32_t, 3>& o) override
     {
+        if (!mFromFile) return;  // a caller's grid stays whole
         using LeafT = typename GridT::TreeType::LeafNodeType;
         if (LeafT* leaf = mGrid->tree().probeLeaf(openvdb::Coord(o[0], o[1], o[2]))) {
             typename LeafT::Buffer empty(openvdb::PartialCreate(), mGrid->background());
@@ -94,7 +99,7 @@ public:
         // delayed-loading copy instead and free each leaf right after reading it, so the scan costs a
         // second decompression pass but only one leaf of memory at a time.
         typename GridT::Ptr copy = mGrid;
-        try {
+        if (mFromFile) try {
             openvdb::io::File f(mInfo.file);
             f.setCopyMaxBytes(0);
             f.open(/*delayLoad=*/true);
@@ -173,10 +178,55 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
 
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
+// What both entry points share once the grid is in hand: the info the pipeline needs, and the
+// checks that need the topology (never a voxel buffer).
+std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile)
+{
+    VolumeInfo info;
+    info.file = label;
+    info.gridName = grid->getName();
+    info.valueType = grid->valueType();
+    info.levelSet = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
+    info.indexToWorld = affineOf(grid->transform());
+    if (std::abs(info.indexToWorld.determinant()) < 1e-300)
+        throw InputError(label + ": grid '" + info.gridName + "' has a singular transform");
+
+    std::unique_ptr<Volume> vol;
+    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
+        info.background = f->background();
+        topologyInfo(*f, info);
+        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, fromFile);
+    } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
+        info.background = d->background();
+        topologyInfo(*d, info);
+        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, fromFile);
+    } else {
+        throw InputError(label + ": grid '" + info.gridName + "' is not a float or double grid");
+    }
+    if (!std::isfinite(info.background))
+        throw InputError(label + ": grid '" + info.gridName + "' has a non-finite background value");
+    if (info.activeVoxels == 0 && info.leafCount == 0)
+        throw InputError(label + ": grid '" + info.gridName + "' is empty (no active voxels)");
+    // The topology's own box (leaves and active tiles), before any voxel is read.
+    openvdb::CoordBBox box;
+    if (grid->baseTree().evalLeafBoundingBox(box)) {
+        const int32_t mn[3] = {box.min().x(), box.min().y(), box.min().z()};
+        const int32_t mx[3] = {box.max().x(), box.max().y(), box.max().z()};
+        try {
+            checkIndexBox(mn, mx, "the grid's leaves and active tiles span the index box");
+        } catch (const InputError& e) {
+            throw InputError(label + ": grid '" + info.gridName + "': " + e.what());
+        }
+    }
+    return vol;
+}
+
+
 } // namespace
 
 void Volume::trimInputMapping() const
 {
+    if (!mFromFile) return;
     char resolved[PATH_MAX];
     if (!::realpath(mInfo.file.c_str(), resolved)) return;
     const std::string target = resolved;
@@ -255,43 +305,24 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
-    VolumeInfo info;
-    info.file = path;
-    info.gridName = grid->getName();
-    info.valueType = grid->valueType();
-    info.levelSet = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
-    info.indexToWorld = affineOf(grid->transform());
-    if (std::abs(info.indexToWorld.determinant()) < 1e-300)
-        throw InputError(path + ": grid '" + info.gridName + "' has a singular transform");
+    return wrapGrid(grid, path, /*fromFile=*/true);
+}
 
-    std::unique_ptr<Volume> vol;
-    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
-        info.background = f->background();
-        topologyInfo(*f, info);
-        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info);
-    } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
-        info.background = d->background();
-        topologyInfo(*d, info);
-        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info);
-    } else {
-        throw InputError(path + ": grid '" + info.gridName + "' is not a float or double grid");
+std::unique_ptr<Volume> Volume::fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label)
+{
+    static std::once_flag init;
+    std::call_once(init, [] { openvdb::initialize(); });
+    if (!grid) throw InputError(label + ": no grid");
+    if (!isScalar(*grid))
+        throw InputError(label + ": grid '" + grid->getName() + "' has value type " + grid->valueType() +
+                         "; only float and double grids can be meshed");
+    try {
+        checkTransform(grid->transform());
+    } catch (const InputError& e) {
+        throw InputError(label + ": grid '" + grid->getName() + "' " + e.what());
     }
-    if (!std::isfinite(info.background))
-        throw InputError(path + ": grid '" + info.gridName + "' has a non-finite background value");
-    if (info.activeVoxels == 0 && info.leafCount == 0)
-        throw InputError(path + ": grid '" + info.gridName + "' is empty (no active voxels)");
-    // The topology's own box (leaves and active tiles), before any voxel is read.
-    openvdb::CoordBBox box;
-    if (grid->baseTree().evalLeafBoundingBox(box)) {
-        const int32_t mn[3] = {box.min().x(), box.min().y(), box.min().z()};
-        const int32_t mx[3] = {box.max().x(), box.max().y(), box.max().z()};
-        try {
-            checkIndexBox(mn, mx, "the grid's leaves and active tiles span the index box");
-        } catch (const InputError& e) {
-            throw InputError(path + ": grid '" + info.gridName + "': " + e.what());
-        }
-    }
-    return vol;
+    // Never written to: a caller's grid is only read (releaseLeaf is a no-op for it).
+    return wrapGrid(openvdb::ConstPtrCast<openvdb::GridBase>(grid), label, /*fromFile=*/false);
 }
 
 } // namespace vdb_isosimp

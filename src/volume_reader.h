@@ -10,6 +10,8 @@
 
 #include "marching_cubes.h"
 
+#include <openvdb/openvdb.h>
+
 namespace vdb_isosimp {
 
 struct VolumeInfo {
@@ -34,6 +36,9 @@ public:
     // (input_checks.h); OpenVDB's own exceptions become InputError too.
     // @throw InputError naming the file and the problem.
     static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName);
+    // A read-only view of a grid already in memory (the library's grid-in entry point): its voxel
+    // buffers are never released. `label` names it in messages. @throw InputError as open() does.
+    static std::unique_ptr<Volume> fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label);
     virtual ~Volume() = default;
 
     const VolumeInfo& info() const { return mInfo; }
@@ -58,6 +63,7 @@ public:
 
 protected:
     VolumeInfo mInfo;
+    bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
 };
 
 } // namespace vdb_isosimp

@@ -1,6 +1,6 @@
-// volumeFromGrid (an in-memory grid, read only) gives what Volume::open gives for the same grid read
+// Volume::fromGrid (an in-memory grid, read only) gives what Volume::open gives for the same grid read
 // from a file: the same info, block list, samples and value range; and it never frees the caller's voxels.
-#include "grid_volume.h"
+#include "volume_reader.h"
 #include "test_grids.h"
 
 #include "errors.h"
@@ -16,7 +16,7 @@ void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
 {
     grid->setName(name);
     const auto fromFile = vi::Volume::open(vt::writeGrid(grid, "gridvolume_" + name), "");
-    const auto inMemory = vi::volumeFromGrid(grid, "in-memory grid '" + name + "'");
+    const auto inMemory = vi::Volume::fromGrid(grid, "in-memory grid '" + name + "'");
     const vi::VolumeInfo &a = fromFile->info(), &b = inMemory->info();
     EXPECT_EQ(a.gridName, b.gridName);
     EXPECT_EQ(a.valueType, b.valueType);
@@ -64,7 +64,7 @@ TEST(GridVolume, RejectsWhatTheFileReaderRejects)
     auto vec = openvdb::Vec3SGrid::create();
     vec->setName("vel");
     try {
-        vi::volumeFromGrid(vec, "in-memory grid 'vel'");
+        vi::Volume::fromGrid(vec, "in-memory grid 'vel'");
         ADD_FAILURE();
     } catch (const vi::InputError& e) {
         EXPECT_STREQ(e.what(), "in-memory grid 'vel': grid 'vel' has value type vec3s; only float and double grids "
@@ -72,5 +72,5 @@ TEST(GridVolume, RejectsWhatTheFileReaderRejects)
     }
     auto empty = openvdb::FloatGrid::create(1.0f);
     empty->setName("nothing");
-    EXPECT_THROW(vi::volumeFromGrid(empty, "x"), vi::InputError);
+    EXPECT_THROW(vi::Volume::fromGrid(empty, "x"), vi::InputError);
 }
