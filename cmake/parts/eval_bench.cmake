@@ -32,3 +32,18 @@ if(VDB_ISOSIMP_BUILD_TESTS AND TARGET vdb_isosimp AND TARGET mesh_error)
             ${VDB_ISOSIMP_EVAL_DATA}/torus_levelset.vdb ${VDB_ISOSIMP_EVAL_DATA}/noise_fog.vdb)
   set_tests_properties(eval.mesh_error_vs_vtk PROPERTIES LABELS eval TIMEOUT 300)
 endif()
+
+# upsample_volume keeps the surface where it was: a torus up-sampled 2x meshes (R = 1) within 0.02% of
+# the bounding-box diagonal (RMS) of the original, with about 4x the faces.
+if(VDB_ISOSIMP_BUILD_TESTS AND TARGET vdb_isosimp AND TARGET mesh_error)
+  add_test(NAME eval.upsample_volume_same_surface
+    COMMAND sh -c "d=$(mktemp -d) || exit 1; trap 'rm -rf $d' EXIT; \
+\"$0\" torus -n 48 -o $d/a.vdb > /dev/null && \"$1\" $d/a.vdb -f 2 -o $d/b.vdb > /dev/null && \
+\"$2\" $d/a.vdb -r 1 -q -o $d/a.ply && \"$2\" $d/b.vdb -r 1 -q -o $d/b.ply && \
+\"$3\" --json -n 200000 $d/a.ply $d/b.ply > $d/e.json && cat $d/e.json && \
+awk '/a_to_b/ { sub(/.*rms_pct.: */, \"\"); sub(/,.*/, \"\"); exit !($0 < 0.02) }' $d/e.json && \
+fa=$(sed -n 's/.*a_faces.: \\([0-9]*\\).*/\\1/p' $d/e.json) && fb=$(sed -n 's/.*b_faces.: \\([0-9]*\\).*/\\1/p' $d/e.json) && \
+echo \"faces $fa -> $fb\" && [ $((fb * 10)) -gt $((fa * 35)) ] && [ $((fb * 10)) -lt $((fa * 45)) ]"
+      $<TARGET_FILE:make_volume> $<TARGET_FILE:upsample_volume> $<TARGET_FILE:vdb_isosimp> $<TARGET_FILE:mesh_error>)
+  set_tests_properties(eval.upsample_volume_same_surface PROPERTIES LABELS eval TIMEOUT 120)
+endif()
