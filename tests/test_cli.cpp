@@ -6,6 +6,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
+#include "test_files.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -24,15 +26,8 @@ struct RunResult {
     std::string err;
 };
 
-std::string slurp(const std::string& path)
-{
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
-
-bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
+using vdb_isosimp::testing::slurp;
+using vdb_isosimp::testing::exists;
 
 // Runs the program in `dir` with `args`; captures stderr and the exit code.
 RunResult run(const std::string& dir, const std::string& args)

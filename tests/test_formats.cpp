@@ -9,6 +9,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
+#include "test_files.h"
+
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
@@ -30,14 +32,7 @@ std::string tempDir(const std::string& name)
     return d;
 }
 
-std::string slurp(const std::string& path)
-{
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
-
+using vdb_isosimp::testing::slurp;
 // The one mesh: a simplified, rotated and translated level-set sphere through the library API.
 const vi::Result& sphereResult()
 {

@@ -10,6 +10,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
+#include "test_files.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -30,15 +32,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::string slurp(const std::string& path)
-{
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
-
-bool exists(const std::string& path) { return ::access(path.c_str(), F_OK) == 0; }
+using vdb_isosimp::testing::slurp;
+using vdb_isosimp::testing::exists;
 
 std::string listDir(const std::string& dir)
 {

@@ -1,6 +1,7 @@
 // mesh_error: metro-style distance between two triangle meshes (mean, RMS and max of A->B and
 // B->A, symmetric Hausdorff distance), in absolute units and in % of A's bounding box diagonal.
 #include "mesh_error.h"
+#include "json_text.h"
 #include "mesh_io.h"
 
 #include <CLI/CLI.hpp>
@@ -21,19 +22,6 @@ Mesh load(const std::string& path) {
     Mesh m = eval::readMesh(path);
     if (m.triangles.empty()) throw std::runtime_error("mesh file '" + path + "' contains no triangles");
     return m;
-}
-
-std::string jsonString(const std::string& s) {
-    std::string out = "\"";
-    for (char c : s) {
-        if (c == '"' || c == '\\') out += '\\';
-        if (static_cast<unsigned char>(c) < 0x20) {
-            char buf[8];
-            std::snprintf(buf, sizeof buf, "\\u%04x", c);
-            out += buf;
-        } else out += c;
-    }
-    return out + "\"";
 }
 
 void printJsonDirection(const char* name, const eval::DistanceStats& d, double diag, bool comma) {

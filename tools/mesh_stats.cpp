@@ -2,6 +2,7 @@
 // non-manifold and misoriented elements, components, Euler characteristic, volume, area,
 // triangle quality, bounding box).
 #include "mesh_io.h"
+#include "json_text.h"
 #include "mesh_stats.h"
 
 #include <CLI/CLI.hpp>
@@ -13,19 +14,6 @@
 using namespace vdb_isosimp;
 
 namespace {
-
-std::string jsonString(const std::string& s) {
-    std::string out = "\"";
-    for (char c : s) {
-        if (c == '"' || c == '\\') out += '\\';
-        if (static_cast<unsigned char>(c) < 0x20) {
-            char buf[8];
-            std::snprintf(buf, sizeof buf, "\\u%04x", c);
-            out += buf;
-        } else out += c;
-    }
-    return out + "\"";
-}
 
 } // namespace
 

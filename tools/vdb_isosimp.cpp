@@ -2,6 +2,7 @@
 // stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
 #include "cli_numbers.h"
 #include "errors.h"
+#include "json_text.h"
 #include "input_checks.h"
 #include "mesh_writer.h"
 #include "run_stats.h"
@@ -156,25 +157,14 @@ std::string stemOf(const std::string& path)
     return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
 }
 
-std::string jsonEscape(const std::string& s)
-{
-    std::string o;
-    for (char c : s) {
-        if (c == '"' || c == '\\') { o += '\\'; o += c; }
-        else if (static_cast<unsigned char>(c) < 0x20) { char b[8]; std::snprintf(b, sizeof b, "\\u%04x", c); o += b; }
-        else o += c;
-    }
-    return o;
-}
-
 std::string reportJson(const Report& r, const std::string& output, const Options& o)
 {
     std::ostringstream j;
     j.precision(10);
     j << "{\n"
-      << "  \"input\": \"" << jsonEscape(r.file) << "\",\n"
-      << "  \"output\": \"" << jsonEscape(output) << "\",\n"
-      << "  \"grid\": \"" << jsonEscape(r.grid) << "\",\n"
+      << "  \"input\": " << jsonString(r.file) << ",\n"
+      << "  \"output\": " << jsonString(output) << ",\n"
+      << "  \"grid\": " << jsonString(r.grid) << ",\n"
       << "  \"value_type\": \"" << r.valueType << "\",\n"
       << "  \"grid_class\": \"" << r.gridClass << "\",\n"
       << "  \"iso\": " << r.iso << ",\n"
