@@ -453,6 +453,62 @@ size_t Decimator::removeDegenerateFaces()
     return remaining;
 }
 
+size_t Decimator::dropSmallComponents(size_t targetFaces)
+{
+    if (mFaceCount <= targetFaces) return 0;
+    // Components by union-find over the vertices of live faces.
+    std::vector<uint32_t> parent(mVerts.size());
+    for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
+    auto find = [&](uint32_t v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (const Face& f : mFaces)
+        if (f.alive) {
+            parent[find(f.v[1])] = find(f.v[0]);
+            parent[find(f.v[2])] = find(f.v[0]);
+        }
+    struct Component { double area = 0; uint32_t firstFace = UINT32_MAX; std::vector<uint32_t> faces; };
+    std::vector<Component> comps;
+    std::vector<int64_t> index(mVerts.size(), -1);
+    for (uint32_t f = 0; f < mFaces.size(); ++f) {
+        if (!mFaces[f].alive) continue;
+        const uint32_t root = find(mFaces[f].v[0]);
+        if (index[root] < 0) {
+            index[root] = int64_t(comps.size());
+            comps.emplace_back();
+            comps.back().firstFace = f;
+        }
+        Component& c = comps[size_t(index[root])];
+        const auto& v = mFaces[f].v;
+        const V3 n = cross(sub(mVerts[v[1]].p, mVerts[v[0]].p), sub(mVerts[v[2]].p, mVerts[v[0]].p));
+        c.area += 0.5 * std::sqrt(dot(n, n));
+        c.faces.push_back(f);
+    }
+    if (comps.size() < 2) return 0;
+    std::sort(comps.begin(), comps.end(), [](const Component& a, const Component& b) {
+        return a.area != b.area ? a.area < b.area : a.firstFace < b.firstFace;
+    });
+    size_t dropped = 0;
+    for (size_t i = 0; i + 1 < comps.size() && mFaceCount > targetFaces; ++i) {
+        std::vector<uint32_t> verts;
+        for (uint32_t f : comps[i].faces) {
+            for (uint32_t v : mFaces[f].v) verts.push_back(v);
+            killFace(f);
+        }
+        std::sort(verts.begin(), verts.end());
+        verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+        for (uint32_t v : verts) {
+            mVerts[v].alive = false;
+            ++mVerts[v].version;
+            mFreeVerts.push_back(v);
+            --mVertexCount;
+        }
+        ++dropped;
+    }
+    return dropped;
+}
+
 void Decimator::requeueAll()
 {
     mHeap.clear();

@@ -45,6 +45,11 @@ public:
     // over (no area, no volume). Returns how many zero-area faces remain.
     size_t removeDegenerateFaces();
 
+    // Last resort when edge collapses cannot reach the target (many small closed components, each
+    // already minimal, as in noisy CT data): removes whole components, smallest area first, never the
+    // largest one, until at most `targetFaces` remain. Returns the number of components removed.
+    size_t dropSmallComponents(size_t targetFaces);
+
     // Requeues every contractible edge: edges refused earlier may have become legal since.
     void requeueAll();
 

@@ -137,9 +137,13 @@ public:
         mDec.setMaxNormalTurn(0.17);
         // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
         if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
+        // Still above target (more than 1%): the surface is mostly small closed components that no
+        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds.
+        if (double(mDec.faceCount()) > 1.01 * double(targetFaces)) mComponentsDropped = mDec.dropSmallComponents(targetFaces);
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
+    uint64_t componentsDropped() const { return mComponentsDropped; }
     Decimator& decimator() { return mDec; }
     const SlabStats& stats() const { return mStats; }
 
@@ -168,7 +172,7 @@ private:
     Decimator mDec;
     SlabStats mStats;
     bool mInitial = false;
-    uint64_t mFacesGenerated = 0, mSinceLast = 0;
+    uint64_t mFacesGenerated = 0, mSinceLast = 0, mComponentsDropped = 0;
 };
 
 // A run of whole block layers (equal z), processed by its own integrator.
@@ -350,6 +354,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     rep.unfinalizedAtEnd = unfinalized - seamVertices;
     rep.trace.insert(rep.trace.end(), whole.stats().trace.begin() + traced, whole.stats().trace.end());
     rep.decimations += whole.stats().trace.size() - traced;
+    rep.componentsDropped = whole.componentsDropped();
     result.mesh = whole.decimator().mesh();
     rep.facesOut = result.mesh.triangles.size();
     rep.vertsOut = result.mesh.points.size();

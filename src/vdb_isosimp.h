@@ -73,6 +73,7 @@ struct Report {
     uint64_t decimations = 0;
     uint64_t maxIntermediateFaces = 0;
     uint64_t maxUncontractibleFaces = 0;
+    uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     double seconds = 0.0;
     double peakRssMb = 0.0;

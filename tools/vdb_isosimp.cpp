@@ -178,6 +178,7 @@ std::string reportJson(const Report& r, const std::string& output, const Options
       << "  \"decimations\": " << r.decimations << ",\n"
       << "  \"max_intermediate_faces\": " << r.maxIntermediateFaces << ",\n"
       << "  \"max_uncontractible_faces\": " << r.maxUncontractibleFaces << ",\n"
+      << "  \"components_dropped\": " << r.componentsDropped << ",\n"
       << "  \"seconds\": " << r.seconds << ",\n"
       << "  \"peak_rss_mb\": " << r.peakRssMb << "\n"
       << "}\n";
