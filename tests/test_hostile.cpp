@@ -353,7 +353,9 @@ Interrupted interrupt(const std::string& dir, const std::vector<std::string>& ar
 const std::string& largeVolume()
 {
     static const std::string path = [] {
-        const std::string d = freshDir("large");
+        // One per process: ctest runs these tests in parallel, and a shared file would be deleted and
+        // rewritten under a run that is reading it.
+        const std::string d = freshDir("large_" + std::to_string(::getpid()));
         const std::string p = d + "/gyroid.vdb";
         const std::string cmd = std::string("'") + MAKE_VOLUME_EXE + "' gyroid -n 224 -o '" + p + "' > /dev/null";
         if (std::system(cmd.c_str()) != 0) return std::string();
