@@ -284,6 +284,11 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         const bool seam = si > 0;
         size_t next = slab.begin;
         const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
+        // Block meshes live in a ring of `tokens` slots rather than travelling as heap items: at most
+        // `tokens` blocks are in flight and the last stage is in order, so block i + tokens never starts
+        // before block i is integrated; and a cancelled pipeline leaves nothing behind (TBB does not
+        // destroy items that are in flight when a stage throws).
+        std::vector<BlockMesh> slots(tokens);
         tbb::parallel_pipeline(
             tokens,
             tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
@@ -291,12 +296,12 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                                                if (next == slab.end) { fc.stop(); return 0; }
                                                return next++;
                                            }) &
-                tbb::make_filter<size_t, std::shared_ptr<BlockMesh>>(
+                tbb::make_filter<size_t, size_t>(
                     tbb::filter_mode::parallel,
                     [&](size_t i) {
                         BlockSamples s;
                         vol->sample(blocks[i], s);
-                        auto m = std::make_shared<BlockMesh>();
+                        BlockMesh* m = &slots[i % tokens];
                         m->blockIndex = i;
                         const auto mm = std::minmax_element(s.values.begin(), s.values.end());
                         m->minValue = *mm.first;
@@ -307,10 +312,11 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                                 const EdgeCoord e = decodeEdgeKey(m->keys[v]);
                                 if (e.z == slab.zStart && e.axis != 2) m->finalAfterBlock[v] = 0;
                             }
-                        return m;
+                        return i;
                     }) &
-                tbb::make_filter<std::shared_ptr<BlockMesh>, void>(
-                    tbb::filter_mode::serial_in_order, [&](std::shared_ptr<BlockMesh> m) {
+                tbb::make_filter<size_t, void>(
+                    tbb::filter_mode::serial_in_order, [&](size_t i) {
+                        const BlockMesh* m = &slots[i % tokens];
                         integ.add(*m);
                         // The slab below still samples this slab's first layer of leaves.
                         if (!seam || blocks[m->blockIndex][2] != slab.zStart) vol->releaseLeaf(blocks[m->blockIndex]);
