@@ -98,7 +98,7 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
     ++v.version;  // a reused slot must not match stale queue entries
     v.alive = true;
     v.final = false;
-    v.faces.clear();
+    v.head = kNone;
     ++mVertexCount;
     return id;
 }
@@ -118,7 +118,10 @@ uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
     f.alive = true;
     f.nonFinal = uint8_t(!mVerts[v[0]].final + !mVerts[v[1]].final + !mVerts[v[2]].final);
     if (f.nonFinal) ++mUncontractibleFaces;
-    for (uint32_t x : v) mVerts[x].faces.push_back(id);
+    for (int k = 0; k < 3; ++k) {
+        f.next[k] = mVerts[v[k]].head;
+        mVerts[v[k]].head = 3 * id + uint32_t(k);
+    }
     ++mFaceCount;
     return id;
 }
@@ -126,9 +129,12 @@ uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
 void Decimator::killFace(uint32_t id)
 {
     Face& f = mFaces[id];
-    for (uint32_t x : f.v) {
-        auto& fl = mVerts[x].faces;
-        fl.erase(std::find(fl.begin(), fl.end(), id));
+    for (uint32_t k = 0; k < 3; ++k) {
+        // Unlink corner 3*id+k from its vertex's list (short: the vertex's valence).
+        const uint32_t corner = 3 * id + k;
+        uint32_t* link = &mVerts[f.v[k]].head;
+        while (*link != corner) link = &mFaces[*link / 3].next[*link % 3];
+        *link = f.next[k];
     }
     if (f.nonFinal) --mUncontractibleFaces;
     f.alive = false;
@@ -136,14 +142,36 @@ void Decimator::killFace(uint32_t id)
     --mFaceCount;
 }
 
-void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out) const
+void Decimator::killVertex(uint32_t v)
 {
+    Vertex& x = mVerts[v];
+    x.alive = false;
+    x.head = kNone;
+    ++x.version;
+    mFreeVerts.push_back(v);
+    --mVertexCount;
+}
+
+uint32_t Decimator::nextStamp()
+{
+    if (mStamp >= UINT32_MAX - 4) {
+        for (Vertex& v : mVerts) v.mark = 0;
+        mStamp = 0;
+    }
+    return ++mStamp;
+}
+
+void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
+{
+    // Each neighbour once, in ring-walk order; a stamp per vertex replaces sorting.
     out.clear();
-    for (uint32_t f : mVerts[v].faces)
-        for (uint32_t x : mFaces[f].v)
-            if (x != v) out.push_back(x);
-    std::sort(out.begin(), out.end());
-    out.erase(std::unique(out.begin(), out.end()), out.end());
+    const uint32_t stamp = nextStamp();
+    for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        for (uint32_t x : mFaces[c / 3].v)
+            if (x != v && mVerts[x].mark != stamp) {
+                mVerts[x].mark = stamp;
+                out.push_back(x);
+            }
 }
 
 std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost) const
@@ -172,7 +200,14 @@ void Decimator::push(uint32_t a, uint32_t b)
 {
     double cost;
     placement(a, b, &cost);
-    heapPush(mHeap, Candidate{float(cost), a, b, mVerts[a].version, mVerts[b].version});
+    heapPush(mHeap, Candidate{float(cost), a, b, mVerts[a].version + mVerts[b].version});
+}
+
+bool Decimator::current(const Candidate& c) const
+{
+    const Vertex& va = mVerts[c.a];
+    const Vertex& vb = mVerts[c.b];
+    return va.alive && vb.alive && va.version + vb.version == c.stamp;
 }
 
 void Decimator::finalize(uint32_t v)
@@ -180,8 +215,8 @@ void Decimator::finalize(uint32_t v)
     Vertex& vx = mVerts[v];
     vx.final = true;
     ++mFinalizations;
-    for (uint32_t f : vx.faces)
-        if (--mFaces[f].nonFinal == 0) --mUncontractibleFaces;
+    for (uint32_t c = vx.head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        if (--mFaces[c / 3].nonFinal == 0) --mUncontractibleFaces;
     neighbours(v, mScratchA);
     for (uint32_t n : mScratchA)
         if (mVerts[n].final) push(std::min(v, n), std::max(v, n));
@@ -260,8 +295,8 @@ size_t Decimator::finalizeRemaining()
 
 bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const
 {
-    for (uint32_t f : mVerts[moved].faces) {
-        const auto& fv = mFaces[f].v;
+    for (uint32_t c = mVerts[moved].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        const auto& fv = mFaces[c / 3].v;
         if (fv[0] == other || fv[1] == other || fv[2] == other) continue;  // removed by the collapse
         V3 q[3];
         for (int i = 0; i < 3; ++i) q[i] = fv[i] == moved ? p : mVerts[fv[i]].p;
@@ -286,34 +321,49 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
     return true;
 }
 
-bool Decimator::collapse(const Candidate& c)
+bool Decimator::collapse(uint32_t a, uint32_t b)
 {
-    const uint32_t a = c.a, b = c.b;
-    // The two faces on edge ab and their opposite corners.
+    // The two faces on edge ab and their opposite corners; the valence of a on the way.
     uint32_t shared[2], opposite[2];
     int ns = 0;
-    for (uint32_t f : mVerts[a].faces) {
-        const auto& fv = mFaces[f].v;
+    size_t valenceA = 0, valenceB = 0;
+    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
+        const auto& fv = mFaces[c / 3].v;
         if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
         if (ns == 2) return false;  // non-manifold edge
-        shared[ns] = f;
+        shared[ns] = c / 3;
         opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
     }
     if (ns != 2 || opposite[0] == opposite[1]) return false;
-    // Link condition: the only common neighbours of a and b are the two opposite corners.
-    neighbours(a, mScratchA);
-    neighbours(b, mScratchB);
+    // Link condition: the only common neighbours of a and b are the two opposite corners. The rings
+    // are walked once with stamps: mScratchA gets the union of both rings (what needs requeueing).
+    const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
+    std::vector<uint32_t>& ring = mScratchA;
+    ring.clear();
+    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        for (uint32_t x : mFaces[c / 3].v)
+            if (x != a && mVerts[x].mark != inA) {
+                mVerts[x].mark = inA;
+                ring.push_back(x);
+            }
     size_t common = 0;
-    for (size_t i = 0, j = 0; i < mScratchA.size() && j < mScratchB.size();) {
-        if (mScratchA[i] < mScratchB[j]) ++i;
-        else if (mScratchB[j] < mScratchA[i]) ++j;
-        else { ++common; ++i; ++j; }
-    }
+    for (uint32_t c = mVerts[b].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceB)
+        for (uint32_t x : mFaces[c / 3].v) {
+            if (x == b) continue;
+            uint32_t& m = mVerts[x].mark;
+            if (m == inA) {
+                m = inBoth;
+                ++common;
+            } else if (m != inBoth && m != inB) {
+                m = inB;
+                ring.push_back(x);
+            }
+        }
     if (common != 2) return false;
     // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
     auto hasFaceWith = [&](uint32_t v) {
-        for (uint32_t f : mVerts[v].faces) {
-            const auto& fv = mFaces[f].v;
+        for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
             const bool c0 = fv[0] == opposite[0] || fv[1] == opposite[0] || fv[2] == opposite[0];
             const bool c1 = fv[0] == opposite[1] || fv[1] == opposite[1] || fv[2] == opposite[1];
             if (c0 && c1) return true;
@@ -330,31 +380,29 @@ bool Decimator::collapse(const Candidate& c)
     if (place == 4) return false;
     const V3 target = places[place];
 
-    // Keep the end with more faces (fewer lists to rewrite); the other one dies.
-    const uint32_t keep = mVerts[a].faces.size() >= mVerts[b].faces.size() ? a : b;
+    // Keep the end with more faces (a shorter list to relink); the other one dies.
+    const uint32_t keep = valenceA >= valenceB ? a : b;
     const uint32_t gone = keep == a ? b : a;
     killFace(shared[0]);
     killFace(shared[1]);
     Vertex& vk = mVerts[keep];
     Vertex& vg = mVerts[gone];
-    for (uint32_t f : vg.faces) {
-        for (uint32_t& x : mFaces[f].v)
-            if (x == gone) x = keep;
-        vk.faces.push_back(f);
+    // Hand gone's corners to keep: rename, then splice gone's list in front of keep's.
+    uint32_t last = kNone;
+    for (uint32_t c = vg.head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        mFaces[c / 3].v[c % 3] = keep;
+        last = c;
     }
-    vg.faces.clear();
-    vg.faces.shrink_to_fit();
-    vg.alive = false;
-    ++vg.version;
-    mFreeVerts.push_back(gone);
-    --mVertexCount;
+    if (last != kNone) {
+        mFaces[last / 3].next[last % 3] = vk.head;
+        vk.head = vg.head;
+    }
     vk.p = target;
     vk.q += vg.q;
     ++vk.version;
+    killVertex(gone);
     // The survivor's ring is the union of both rings, without the two ends.
-    mScratchC.clear();
-    std::set_union(mScratchA.begin(), mScratchA.end(), mScratchB.begin(), mScratchB.end(), std::back_inserter(mScratchC));
-    for (uint32_t n : mScratchC)
+    for (uint32_t n : ring)
         if (n != keep && n != gone && mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
     return true;
 }
@@ -365,18 +413,11 @@ size_t Decimator::decimateTo(size_t targetFaces)
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = heapPop(mHeap);
-        const Vertex& va = mVerts[c.a];
-        const Vertex& vb = mVerts[c.b];
-        if (!va.alive || !vb.alive || va.version != c.versionA || vb.version != c.versionB) continue;
-        if (collapse(c)) ++collapses;
+        if (current(c) && collapse(c.a, c.b)) ++collapses;
     }
     // Stale entries pile up; rebuild the queue when they dominate it.
     if (mHeap.size() > 4 * mFaceCount + 1024) {
-        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(),
-                                   [&](const Candidate& c) {
-                                       return !mVerts[c.a].alive || !mVerts[c.b].alive ||
-                                              mVerts[c.a].version != c.versionA || mVerts[c.b].version != c.versionB;
-                                   }),
+        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !current(c); }),
                     mHeap.end());
         heapify(mHeap);
     }
@@ -407,20 +448,15 @@ bool Decimator::dropFlatComponent(uint32_t seed)
         if (!degenerate(faces[i])) return false;
         for (uint32_t v : mFaces[faces[i]].v) {
             if (std::find(verts.begin(), verts.end(), v) == verts.end()) verts.push_back(v);
-            for (uint32_t g : mVerts[v].faces)
-                if (std::find(faces.begin(), faces.end(), g) == faces.end()) {
+            for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+                if (const uint32_t g = c / 3; std::find(faces.begin(), faces.end(), g) == faces.end()) {
                     if (faces.size() == 16) return false;
                     faces.push_back(g);
                 }
         }
     }
     for (uint32_t f : faces) killFace(f);
-    for (uint32_t v : verts) {
-        mVerts[v].alive = false;
-        ++mVerts[v].version;
-        mFreeVerts.push_back(v);
-        --mVertexCount;
-    }
+    for (uint32_t v : verts) killVertex(v);
     return true;
 }
 
@@ -441,8 +477,7 @@ size_t Decimator::removeDegenerateFaces()
             for (int k = 0; k < 3 && !done; ++k) {
                 const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
                 if (!mVerts[a].final || !mVerts[b].final) continue;
-                const Candidate c{0.0f, a, b, mVerts[a].version, mVerts[b].version};
-                done = collapse(c);
+                done = collapse(a, b);
             }
             if (done) progress = true;
             else if (dropFlatComponent(f)) progress = true;
@@ -498,12 +533,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
         }
         std::sort(verts.begin(), verts.end());
         verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-        for (uint32_t v : verts) {
-            mVerts[v].alive = false;
-            ++mVerts[v].version;
-            mFreeVerts.push_back(v);
-            --mVertexCount;
-        }
+        for (uint32_t v : verts) killVertex(v);
         ++dropped;
     }
     return dropped;

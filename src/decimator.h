@@ -72,34 +72,44 @@ public:
     Mesh mesh() const;
 
 private:
+    // Adjacency without per-vertex containers: every face corner (3 * face + k) is linked into a list
+    // of the corners that share its vertex, headed at the vertex. No allocation per vertex or face,
+    // and a vertex's faces are walked by following `next`.
+    static constexpr uint32_t kNone = UINT32_MAX;
     struct Vertex {
         std::array<double, 3> p{};
         Quadric q;
-        uint32_t version = 0;
+        uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
+        uint32_t head = kNone; // first corner of this vertex
+        uint32_t mark = 0;     // scratch stamp for ring walks (dedupe without sorting)
         bool alive = false;
         bool final = false;
-        std::vector<uint32_t> faces;
     };
     struct Face {
         std::array<uint32_t, 3> v{};
+        std::array<uint32_t, 3> next{};  // next corner of the same vertex, per corner
         uint8_t nonFinal = 0;  // how many of v are not final yet; > 0 makes the face uncontractible
         bool alive = false;
     };
-    // A queued edge: 20 bytes, so the heap stays cache-friendly; the placement is recomputed when the
-    // entry is popped (the quadrics are unchanged while both versions match).
+    // A queued edge, 16 bytes so four siblings of the 4-ary heap share a cache line. `stamp` is the sum
+    // of both versions at push time: versions only grow, so an unchanged sum means neither end changed.
+    // The placement is recomputed when the entry is popped (the quadrics are the same then).
     struct Candidate {
         float cost;
-        uint32_t a, b, versionA, versionB;
+        uint32_t a, b, stamp;
     };
 
     uint32_t newVertex(const std::array<double, 3>& p);
     uint32_t newFace(const std::array<uint32_t, 3>& v);
     void killFace(uint32_t f);
+    void killVertex(uint32_t v);
     void finalize(uint32_t v);
-    void neighbours(uint32_t v, std::vector<uint32_t>& out) const;
+    uint32_t nextStamp();
+    void neighbours(uint32_t v, std::vector<uint32_t>& out);
     std::array<double, 3> placement(uint32_t a, uint32_t b, double* cost) const;
     void push(uint32_t a, uint32_t b);
-    bool collapse(const Candidate& c);
+    bool current(const Candidate& c) const;
+    bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
@@ -114,7 +124,8 @@ private:
     double mMinNormalCos = 0.17;
     std::function<bool()> mStop;
     uint64_t mPolls = 0;
-    std::vector<uint32_t> mScratchA, mScratchB, mScratchC;
+    uint32_t mStamp = 0;
+    std::vector<uint32_t> mScratchA, mScratchB;
 };
 
 } // namespace vdb_isosimp
