@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <iterator>
 
 namespace vdb_isosimp {
@@ -19,13 +20,13 @@ double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] *
 // may not create one. (An equilateral triangle scores 0.29.)
 constexpr double kMinShape = 1e-5;
 
-// Queue order with a full tie-break, so the collapse sequence never depends on heap internals.
+// Queue order: cost, then the lower end, then the higher one, so the collapse sequence never depends
+// on heap internals. Cost and lower end share one 64-bit key (non-negative floats order like their
+// bits), which keeps the hottest comparison to one integer compare.
 template <typename C>
 bool before(const C& x, const C& y)
 {
-    if (x.cost != y.cost) return x.cost < y.cost;
-    if (x.a != y.a) return x.a < y.a;
-    return x.b < y.b;
+    return x.key != y.key ? x.key < y.key : x.b < y.b;
 }
 
 // A 4-ary min-heap: half the depth of a binary heap and siblings in one cache line, which matters
@@ -200,12 +201,15 @@ void Decimator::push(uint32_t a, uint32_t b)
 {
     double cost;
     placement(a, b, &cost);
-    heapPush(mHeap, Candidate{float(cost), a, b, mVerts[a].version + mVerts[b].version});
+    const float f = float(cost);
+    uint32_t bits;
+    std::memcpy(&bits, &f, sizeof bits);
+    heapPush(mHeap, Candidate{uint64_t(bits) << 32 | a, b, mVerts[a].version + mVerts[b].version});
 }
 
 bool Decimator::current(const Candidate& c) const
 {
-    const Vertex& va = mVerts[c.a];
+    const Vertex& va = mVerts[c.a()];
     const Vertex& vb = mVerts[c.b];
     return va.alive && vb.alive && va.version + vb.version == c.stamp;
 }
@@ -280,7 +284,21 @@ void Decimator::absorb(Decimator& other)
     }
     for (const Face& f : other.mFaces)
         if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+    // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
+    // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
+    for (const Candidate& c : other.mHeap) {
+        if (!other.current(c)) continue;
+        const uint32_t a = remap[c.a()], b = remap[c.b];
+        heapPush(mHeap, Candidate{(c.key >> 32) << 32 | std::min(a, b), std::max(a, b), mVerts[a].version + mVerts[b].version});
+    }
     other = Decimator{};
+}
+
+void Decimator::reserve(size_t vertices, size_t faces, size_t queued)
+{
+    mVerts.reserve(vertices);
+    mFaces.reserve(faces);
+    mHeap.reserve(queued);
 }
 
 size_t Decimator::finalizeRemaining()
@@ -413,10 +431,10 @@ size_t Decimator::decimateTo(size_t targetFaces)
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = heapPop(mHeap);
-        if (current(c) && collapse(c.a, c.b)) ++collapses;
+        if (current(c) && collapse(c.a(), c.b)) ++collapses;
     }
     // Stale entries pile up; rebuild the queue when they dominate it.
-    if (mHeap.size() > 4 * mFaceCount + 1024) {
+    if (mHeap.size() > mFaceCount + 1024) {
         mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !current(c); }),
                     mHeap.end());
         heapify(mHeap);

@@ -32,9 +32,15 @@ public:
     size_t decimateTo(size_t targetFaces);
 
     // Moves another decimator's mesh into this one (slab merge). Open vertices with the same edge key
-    // are welded and their quadrics summed; `other` is left empty. The queue is not updated: call
-    // finalizeRemaining() and requeueAll() (the final pass does) before decimating again.
+    // are welded and their quadrics summed; `other` is left empty. Its queued edges come along; edges
+    // at welded vertices are queued by finalizeRemaining().
     void absorb(Decimator& other);
+
+    // Room for what absorbing other decimators will bring, so the merge reallocates once.
+    void reserve(size_t vertices, size_t faces, size_t queued);
+    size_t vertexSlots() const { return mVerts.size(); }
+    size_t faceSlots() const { return mFaces.size(); }
+    size_t queued() const { return mHeap.size(); }
 
     // End of the volume: every vertex still open becomes final (none should remain in an unbounded
     // domain; the count is returned so tests can check it).
@@ -95,8 +101,9 @@ private:
     // of both versions at push time: versions only grow, so an unchanged sum means neither end changed.
     // The placement is recomputed when the entry is popped (the quadrics are the same then).
     struct Candidate {
-        float cost;
-        uint32_t a, b, stamp;
+        uint64_t key;  // cost (float bits) << 32 | lower end
+        uint32_t b, stamp;
+        uint32_t a() const { return uint32_t(key); }
     };
 
     uint32_t newVertex(const std::array<double, 3>& p);

@@ -122,8 +122,7 @@ public:
     {
         mFacesGenerated = facesGenerated;
         unfinalized = mDec.finalizeRemaining();
-        // One queue over the merged slabs: their own queues only knew their own edges.
-        mDec.requeueAll();
+        // The merged queue holds every slab's edges plus the welded seam's.
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
         // Then, only if still above target, allow larger normal turns step by step.
@@ -140,6 +139,14 @@ public:
         // Still above target (more than 1%): the surface is mostly small closed components that no
         // collapse can shrink further; the smallest ones go, so the face count the user asked for holds.
         if (double(mDec.faceCount()) > 1.01 * double(targetFaces)) mComponentsDropped = mDec.dropSmallComponents(targetFaces);
+    }
+
+    // End of a slab: its last batch is decimated like the others (in parallel with the other slabs),
+    // so the serial final pass is left with the seams.
+    void finishSlab()
+    {
+        if (mSinceLast > 0 && !mInitial) decimate(phaseTarget(double(mFacesGenerated), mRatio));
+        mSinceLast = 0;
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
@@ -328,6 +335,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                             !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))
                             throw Cancelled("cancelled");
                     }));
+        integ.finishSlab();
     };
     tbb::parallel_for(size_t(0), slabs.size(), runSlab);
 
@@ -342,6 +350,12 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         rep.trace.insert(rep.trace.end(), st.trace.begin(), st.trace.end());
     }
     Integrator& whole = *integs[0];
+    size_t verts = whole.decimator().vertexSlots(), faces = whole.decimator().faceSlots(), queued = 0;
+    for (const auto& integ : integs) {
+        if (integ.get() != &whole) verts += integ->decimator().vertexCount(), faces += integ->decimator().faceCount();
+        queued += integ->decimator().queued();
+    }
+    whole.decimator().reserve(verts, faces, queued);
     for (size_t i = 1; i < integs.size(); ++i) {
         whole.decimator().absorb(integs[i]->decimator());
         integs[i].reset();
