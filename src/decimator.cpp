@@ -19,6 +19,8 @@ double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] *
 // Faces whose area is this small relative to their squared edge lengths count as degenerate: a collapse
 // may not create one. (An equilateral triangle scores 0.29.)
 constexpr double kMinShape = 1e-5;
+// Below this, an existing face counts as degenerate (zero area, up to rounding) and is cleaned up.
+constexpr double kDegenerateShape = 1e-10;
 
 // Queue order: cost, then the lower end, then the higher one, so the collapse sequence never depends
 // on heap internals. Cost and lower end share one 64-bit key (non-negative floats order like their
@@ -95,7 +97,7 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
     }
     Vertex& v = mVerts[id];
     v.p = p;
-    v.q = Quadric{};
+    v.q = PackedQuadric{};
     ++v.version;  // a reused slot must not match stale queue entries
     v.alive = true;
     v.final = false;
@@ -175,26 +177,33 @@ void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
             }
 }
 
+// The quadric of edge ab written around a's position (both ends' quadrics summed there).
+static Quadric edgeQuadric(const V3& pa, const PackedQuadric& qa, const V3& pb, const PackedQuadric& qb)
+{
+    Quadric q = qa.unpack();
+    q += qb.unpack().shifted(sub(pa, pb));
+    return q;
+}
+
 std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost) const
 {
     const Vertex& va = mVerts[a];
     const Vertex& vb = mVerts[b];
-    Quadric q = va.q;
-    q += vb.q;
-    V3 p;
-    if (!q.optimum(p)) {
+    const Quadric q = edgeQuadric(va.p, va.q, vb.p, vb.q);
+    V3 y;  // relative to a
+    if (!q.optimum(y)) {
         // Ill-conditioned (flat or straight regions): best of the ends and the midpoint.
-        const V3 mid{(va.p[0] + vb.p[0]) / 2, (va.p[1] + vb.p[1]) / 2, (va.p[2] + vb.p[2]) / 2};
-        const V3 options[3] = {va.p, vb.p, mid};
+        const V3 d = sub(vb.p, va.p);
+        const V3 options[3] = {{0, 0, 0}, d, {d[0] / 2, d[1] / 2, d[2] / 2}};
         double best = q.error(options[0]);
-        p = options[0];
+        y = options[0];
         for (int i = 1; i < 3; ++i) {
             const double e = q.error(options[i]);
-            if (e < best) { best = e; p = options[i]; }
+            if (e < best) { best = e; y = options[i]; }
         }
     }
-    if (cost) *cost = std::max(0.0, q.error(p));
-    return p;
+    if (cost) *cost = std::max(0.0, q.error(y));
+    return {va.p[0] + y[0], va.p[1] + y[1], va.p[2] + y[2]};
 }
 
 void Decimator::push(uint32_t a, uint32_t b)
@@ -246,9 +255,13 @@ void Decimator::addBlock(const BlockMesh& block)
         const double len = std::sqrt(dot(n, n));
         if (len > 0) {
             const V3 u{n[0] / len, n[1] / len, n[2] / len};
-            Quadric q;
-            q.addPlane(u, -dot(u, mVerts[v[0]].p), 0.5 * len);
-            for (uint32_t x : v) mVerts[x].q += q;
+            const double d = -dot(u, mVerts[v[0]].p);
+            for (uint32_t x : v) {
+                // The plane around each corner (it passes through all three, up to rounding).
+                Quadric q = mVerts[x].q.unpack();
+                q.addPlane(u, d + dot(u, mVerts[x].p), 0.5 * len);
+                mVerts[x].q.pack(q);
+            }
         }
     }
     for (size_t i = 0; i < block.keys.size(); ++i)
@@ -268,7 +281,9 @@ void Decimator::absorb(Decimator& other)
         auto it = mOpen.find(key);
         if (it != mOpen.end()) {
             remap[id] = it->second;
-            mVerts[it->second].q += other.mVerts[id].q;
+            Vertex& mine = mVerts[it->second];
+            const Vertex& theirs = other.mVerts[id];
+            mine.q.pack(edgeQuadric(mine.p, mine.q, theirs.p, theirs.q));
         } else {
             remap[id] = newVertex(other.mVerts[id].p);
             mVerts[remap[id]].q = other.mVerts[id].q;
@@ -292,13 +307,6 @@ void Decimator::absorb(Decimator& other)
         heapPush(mHeap, Candidate{(c.key >> 32) << 32 | std::min(a, b), std::max(a, b), mVerts[a].version + mVerts[b].version});
     }
     other = Decimator{};
-}
-
-void Decimator::reserve(size_t vertices, size_t faces, size_t queued)
-{
-    mVerts.reserve(vertices);
-    mFaces.reserve(faces);
-    mHeap.reserve(queued);
 }
 
 size_t Decimator::finalizeRemaining()
@@ -415,8 +423,8 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
         mFaces[last / 3].next[last % 3] = vk.head;
         vk.head = vg.head;
     }
+    vk.q.pack(edgeQuadric(vk.p, vk.q, vg.p, vg.q).shifted(sub(target, vk.p)));
     vk.p = target;
-    vk.q += vg.q;
     ++vk.version;
     killVertex(gone);
     // The survivor's ring is the union of both rings, without the two ends.
@@ -444,12 +452,13 @@ size_t Decimator::decimateTo(size_t targetFaces)
 
 bool Decimator::degenerate(uint32_t f) const
 {
-    // The same shape measure collapses are held to: slivers whose float output would have zero area count.
+    // Far flatter than the slivers collapses may not create (kMinShape): a face of a sphere squeezed
+    // to 1e-6 of its width on two axes scores about 1e-6 and is no defect, only a thin shape.
     const auto& v = mFaces[f].v;
     const V3 &p0 = mVerts[v[0]].p, &p1 = mVerts[v[1]].p, &p2 = mVerts[v[2]].p;
     const V3 n = cross(sub(p1, p0), sub(p2, p0));
     const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
-    if (!(std::sqrt(dot(n, n)) > kMinShape * edges)) return true;
+    if (!(std::sqrt(dot(n, n)) > kDegenerateShape * edges)) return true;
     // The output is float: a tiny face can still collapse to zero area when rounded.
     auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
     const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
@@ -480,10 +489,11 @@ bool Decimator::dropFlatComponent(uint32_t seed)
 
 size_t Decimator::removeDegenerateFaces()
 {
-    // A zero-area face has no normal worth keeping: only topology and the shape of the faces that
-    // remain limit these collapses.
+    // A zero-area face has no normal worth keeping, but its neighbours do: any turn short of a fold
+    // is allowed. (Letting faces fold here turned a needle-thin sphere, 1e-6 voxels on two axes and
+    // all slivers, inside out.)
     const double savedCos = mMinNormalCos;
-    mMinNormalCos = -1.0;
+    mMinNormalCos = 0.0;
     size_t remaining = 0;
     for (bool progress = true; progress;) {
         progress = false;

@@ -15,6 +15,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "chunked_vector.h"
 #include "marching_cubes.h"
 #include "mesh.h"
 #include "quadric.h"
@@ -36,10 +37,8 @@ public:
     // at welded vertices are queued by finalizeRemaining().
     void absorb(Decimator& other);
 
-    // Room for what absorbing other decimators will bring, so the merge reallocates once.
-    void reserve(size_t vertices, size_t faces, size_t queued);
-    size_t vertexSlots() const { return mVerts.size(); }
-    size_t faceSlots() const { return mFaces.size(); }
+    // Room in the queue for what absorbing other decimators will bring, so the merge reallocates once.
+    void reserveQueue(size_t queued) { mHeap.reserve(queued); }
     size_t queued() const { return mHeap.size(); }
 
     // End of the volume: every vertex still open becomes final (none should remain in an unbounded
@@ -84,7 +83,7 @@ private:
     static constexpr uint32_t kNone = UINT32_MAX;
     struct Vertex {
         std::array<double, 3> p{};
-        Quadric q;
+        PackedQuadric q;  // around p
         uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
         uint32_t head = kNone; // first corner of this vertex
         uint32_t mark = 0;     // scratch stamp for ring walks (dedupe without sorting)
@@ -121,8 +120,8 @@ private:
     bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
 
-    std::vector<Vertex> mVerts;
-    std::vector<Face> mFaces;
+    ChunkedVector<Vertex> mVerts;
+    ChunkedVector<Face> mFaces;
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     std::vector<Candidate> mHeap;

@@ -350,12 +350,9 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         rep.trace.insert(rep.trace.end(), st.trace.begin(), st.trace.end());
     }
     Integrator& whole = *integs[0];
-    size_t verts = whole.decimator().vertexSlots(), faces = whole.decimator().faceSlots(), queued = 0;
-    for (const auto& integ : integs) {
-        if (integ.get() != &whole) verts += integ->decimator().vertexCount(), faces += integ->decimator().faceCount();
-        queued += integ->decimator().queued();
-    }
-    whole.decimator().reserve(verts, faces, queued);
+    size_t queued = 0;
+    for (const auto& integ : integs) queued += integ->decimator().queued();
+    whole.decimator().reserveQueue(queued);
     for (size_t i = 1; i < integs.size(); ++i) {
         whole.decimator().absorb(integs[i]->decimator());
         integs[i].reset();

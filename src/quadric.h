@@ -9,7 +9,7 @@ namespace vdb_isosimp {
 
 struct Quadric {
     // xx xy xz xw yy yz yw zz zw ww
-    std::array<double, 10> q{};
+    std::array<float, 10> q{};
 
     // Adds the plane n·x + d = 0 (n unit) with weight w (the face's area, so big faces count more).
     void addPlane(const std::array<double, 3>& n, double d, double w)
@@ -33,6 +33,19 @@ struct Quadric {
                2 * q[5] * y * z + 2 * q[6] * y + q[7] * z * z + 2 * q[8] * z + q[9];
     }
 
+    // The same quadric in coordinates shifted by `delta` (y = y' + delta): with Q written around a
+    // point o, the result is Q written around o + delta.
+    Quadric shifted(const std::array<double, 3>& delta) const
+    {
+        const double x = delta[0], y = delta[1], z = delta[2];
+        Quadric r = *this;
+        r.q[3] = q[0] * x + q[1] * y + q[2] * z + q[3];
+        r.q[6] = q[1] * x + q[4] * y + q[5] * z + q[6];
+        r.q[8] = q[2] * x + q[5] * y + q[7] * z + q[8];
+        r.q[9] = error(delta);
+        return r;
+    }
+
     // The point minimising the error, when the 3x3 system is well conditioned relative to its scale.
     bool optimum(std::array<double, 3>& p) const
     {
@@ -47,6 +60,25 @@ struct Quadric {
         p = {(c00 * rx + c01 * ry + c02 * rz) * inv, (c01 * rx + c11 * ry + c12 * rz) * inv,
              (c02 * rx + c12 * ry + c22 * rz) * inv};
         return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
+    }
+};
+
+// How the decimator stores a vertex's quadric: in float, written around the vertex's own position.
+// There the linear and constant parts are small (zero for the planes of the vertex's own faces), so
+// float keeps the precision that world coordinates far from the origin would need double for, at
+// half the memory (the vertex array is most of the intermediate mesh). Arithmetic is done in double.
+struct PackedQuadric {
+    std::array<float, 10> q{};
+
+    Quadric unpack() const
+    {
+        Quadric r;
+        for (int i = 0; i < 10; ++i) r.q[i] = q[i];
+        return r;
+    }
+    void pack(const Quadric& r)
+    {
+        for (int i = 0; i < 10; ++i) q[i] = float(r.q[i]);
     }
 };
 

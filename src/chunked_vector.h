@@ -1,0 +1,49 @@
+// A growable array stored in fixed chunks: growing never copies and never holds the old and the new
+// buffer at once, and the unused tail is below one chunk. For the decimator's vertex and face arrays,
+// where std::vector's doubling left up to half the capacity unused and briefly needed 1.5x more at
+// every reallocation (the peak of a run when the slab meshes are merged).
+#pragma once
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace vdb_isosimp {
+
+template <typename T, unsigned Shift = 14>
+class ChunkedVector {
+public:
+    static constexpr size_t kChunk = size_t(1) << Shift;
+
+    size_t size() const { return mSize; }
+    bool empty() const { return mSize == 0; }
+    T& operator[](size_t i) { return mChunks[i >> Shift][i & (kChunk - 1)]; }
+    const T& operator[](size_t i) const { return mChunks[i >> Shift][i & (kChunk - 1)]; }
+
+    // Appends a value-initialised element.
+    T& emplace_back()
+    {
+        if (mSize == mChunks.size() * kChunk) mChunks.push_back(std::make_unique<T[]>(kChunk));
+        T& x = (*this)[mSize++];
+        x = T{};
+        return x;
+    }
+
+    template <typename Ref, typename Owner>
+    struct Iter {
+        Owner* owner;
+        size_t i;
+        Ref operator*() const { return (*owner)[i]; }
+        Iter& operator++() { ++i; return *this; }
+        bool operator!=(const Iter& o) const { return i != o.i; }
+    };
+    Iter<T&, ChunkedVector> begin() { return {this, 0}; }
+    Iter<T&, ChunkedVector> end() { return {this, mSize}; }
+    Iter<const T&, const ChunkedVector> begin() const { return {this, 0}; }
+    Iter<const T&, const ChunkedVector> end() const { return {this, mSize}; }
+
+private:
+    std::vector<std::unique_ptr<T[]>> mChunks;
+    size_t mSize = 0;
+};
+
+} // namespace vdb_isosimp
