@@ -216,6 +216,16 @@ void Decimator::push(uint32_t a, uint32_t b)
     heapPush(mHeap, Candidate{uint64_t(bits) << 32 | a, b, mVerts[a].version + mVerts[b].version});
 }
 
+bool Decimator::edgeExists(uint32_t a, uint32_t b) const
+{
+    if (!mVerts[a].alive || !mVerts[b].alive || !mVerts[a].final || !mVerts[b].final) return false;
+    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        const auto& fv = mFaces[c / 3].v;
+        if (fv[0] == b || fv[1] == b || fv[2] == b) return true;
+    }
+    return false;
+}
+
 bool Decimator::current(const Candidate& c) const
 {
     const Vertex& va = mVerts[c.a()];
@@ -302,10 +312,14 @@ void Decimator::absorb(Decimator& other)
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
     for (const Candidate& c : other.mHeap) {
-        if (!other.current(c)) continue;
+        if (!other.mVerts[c.a()].alive || !other.mVerts[c.b].alive) continue;
         const uint32_t a = remap[c.a()], b = remap[c.b];
-        heapPush(mHeap, Candidate{(c.key >> 32) << 32 | std::min(a, b), std::max(a, b), mVerts[a].version + mVerts[b].version});
+        // An entry that was stale stays stale (re-evaluated when popped).
+        const uint32_t stamp = mVerts[a].version + mVerts[b].version - (other.current(c) ? 0 : 1);
+        heapPush(mHeap, Candidate{(c.key >> 32) << 32 | std::min(a, b), std::max(a, b), stamp});
     }
+    for (const auto& [a, b] : other.mRefused)
+        if (other.mVerts[a].alive && other.mVerts[b].alive) mRefused.push_back({std::min(remap[a], remap[b]), std::max(remap[a], remap[b])});
     other = Decimator{};
 }
 
@@ -427,23 +441,37 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     vk.p = target;
     ++vk.version;
     killVertex(gone);
-    // The survivor's ring is the union of both rings, without the two ends.
+    // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
+    // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
+    const uint32_t brought = gone == a ? inA : inB;
     for (uint32_t n : ring)
-        if (n != keep && n != gone && mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
+        if (mVerts[n].mark == brought && n != keep && n != gone && mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
     return true;
 }
 
 size_t Decimator::decimateTo(size_t targetFaces)
 {
     size_t collapses = 0;
+    // Edges refused last time (link condition, fold-overs) get another chance: their rings changed.
+    for (const auto& [a, b] : mRefused)
+        if (edgeExists(a, b)) push(a, b);
+    mRefused.clear();
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = heapPop(mHeap);
-        if (current(c) && collapse(c.a(), c.b)) ++collapses;
+        const uint32_t a = c.a(), b = c.b;
+        if (!current(c)) {
+            // An end changed since the entry was queued: requeue at today's cost (it comes straight
+            // back if it is still the cheapest). Pairs that are no longer an edge are dropped.
+            if (edgeExists(a, b)) push(a, b);
+            continue;
+        }
+        if (collapse(a, b)) ++collapses;
+        else mRefused.push_back({a, b});
     }
-    // Stale entries pile up; rebuild the queue when they dominate it.
-    if (mHeap.size() > mFaceCount + 1024) {
-        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !current(c); }),
+    // Entries of dead vertices pile up; drop them when they dominate the queue.
+    if (mHeap.size() > 2 * mFaceCount + 1024) {
+        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !edgeExists(c.a(), c.b); }),
                     mHeap.end());
         heapify(mHeap);
     }
@@ -570,6 +598,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
 void Decimator::requeueAll()
 {
     mHeap.clear();
+    mRefused.clear();
     for (uint32_t v = 0; v < mVerts.size(); ++v) {
         if (!mVerts[v].alive || !mVerts[v].final) continue;
         neighbours(v, mScratchB);

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <functional>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "chunked_vector.h"
@@ -115,6 +116,7 @@ private:
     std::array<double, 3> placement(uint32_t a, uint32_t b, double* cost) const;
     void push(uint32_t a, uint32_t b);
     bool current(const Candidate& c) const;
+    bool edgeExists(uint32_t a, uint32_t b) const;
     bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
@@ -125,6 +127,7 @@ private:
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     std::vector<Candidate> mHeap;
+    std::vector<std::pair<uint32_t, uint32_t>> mRefused;  // refused during the last pass, retried next
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0;
     double mMinNormalCos = 0.17;
