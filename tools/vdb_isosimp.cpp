@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include <atomic>
+#include <malloc.h>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -247,6 +248,10 @@ void probeWritable(const std::string& path)
 
 int main(int argc, char** argv)
 {
+    // Return freed memory to the system past 8 MiB of slack. glibc's default threshold grows with the
+    // largest block freed (up to 64 MiB per arena); block meshes, voxel leaves and merged slab arrays
+    // are freed all run long, and on 2 threads that slack was 16% of peak RSS (noise 256^3: 175 -> 147 MB).
+    mallopt(M_TRIM_THRESHOLD, 8 << 20);
     CLI::App app{"vdb_isosimp: extract the iso-surface of an OpenVDB grid with Marching Cubes and simplify it\n"
                  "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
                  "Output: world space, triangles counter-clockwise seen from outside; the format follows the\n"
