@@ -52,6 +52,8 @@ py::dict reportDict(const Report& r, const Options& o)
     d["max_intermediate_faces"] = r.maxIntermediateFaces;
     d["max_uncontractible_faces"] = r.maxUncontractibleFaces;
     d["seconds"] = r.seconds;
+    d["seconds_slabs"] = r.secondsSlabs;
+    d["seconds_final"] = r.secondsFinal;
     d["peak_rss_mb"] = r.peakRssMb;
     return d;
 }

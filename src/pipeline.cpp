@@ -337,7 +337,10 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                     }));
         integ.finishSlab();
     };
+    const double slabsStart = clock.seconds();
     tbb::parallel_for(size_t(0), slabs.size(), runSlab);
+    rep.secondsSlabs = clock.seconds() - slabsStart;
+    const double finalStart = clock.seconds();
 
     // Merge the slabs in order (welding the seams by edge key) and run the final pass on the whole.
     uint64_t facesGenerated = 0, intermediate = 0;
@@ -372,6 +375,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     rep.trace.insert(rep.trace.end(), whole.stats().trace.begin() + traced, whole.stats().trace.end());
     rep.decimations += whole.stats().trace.size() - traced;
     rep.componentsDropped = whole.componentsDropped();
+    rep.secondsFinal = clock.seconds() - finalStart;
     result.mesh = whole.decimator().mesh();
     rep.facesOut = result.mesh.triangles.size();
     rep.vertsOut = result.mesh.points.size();

@@ -76,6 +76,8 @@ struct Report {
     uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     double seconds = 0.0;
+    double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
+    double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
     double peakRssMb = 0.0;
     std::vector<DecimationRecord> trace;
 };

@@ -173,8 +173,13 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     EXPECT_NE(r.err.find("peak"), std::string::npos) << r.err;
     const std::string json = slurp(d + "/report.json");
     for (const char* key : {"faces_full", "faces_out", "verts_out", "decimations", "max_intermediate_faces",
-                            "max_uncontractible_faces", "seconds", "peak_rss_mb"})
+                            "max_uncontractible_faces", "seconds", "seconds_slabs", "seconds_final", "peak_rss_mb"})
         EXPECT_NE(json.find(std::string("\"") + key + "\""), std::string::npos) << key;
+    // The two phases are parts of the whole run.
+    auto number = [&](const std::string& key) { return std::stod(json.substr(json.find("\"" + key + "\": ") + key.size() + 4)); };
+    EXPECT_GE(number("seconds_slabs"), 0.0);
+    EXPECT_GE(number("seconds_final"), 0.0);
+    EXPECT_LE(number("seconds_slabs") + number("seconds_final"), number("seconds"));
     // The PLY header states the counts the report gives.
     const std::string ply = slurp(d + "/sphere.ply");
     const auto fo = json.find("\"faces_out\": ");

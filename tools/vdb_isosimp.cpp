@@ -181,6 +181,8 @@ std::string reportJson(const Report& r, const std::string& output, const Options
       << "  \"max_uncontractible_faces\": " << r.maxUncontractibleFaces << ",\n"
       << "  \"components_dropped\": " << r.componentsDropped << ",\n"
       << "  \"seconds\": " << r.seconds << ",\n"
+      << "  \"seconds_slabs\": " << r.secondsSlabs << ",\n"
+      << "  \"seconds_final\": " << r.secondsFinal << ",\n"
       << "  \"peak_rss_mb\": " << r.peakRssMb << "\n"
       << "}\n";
     return j.str();
