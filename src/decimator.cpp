@@ -595,6 +595,14 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
     return dropped;
 }
 
+void Decimator::compactQueue()
+{
+    mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !edgeExists(c.a(), c.b); }),
+                mHeap.end());
+    heapify(mHeap);
+    mHeap.shrink_to_fit();
+}
+
 void Decimator::requeueAll()
 {
     mHeap.clear();

@@ -40,6 +40,9 @@ public:
 
     // Room in the queue for what absorbing other decimators will bring, so the merge reallocates once.
     void reserveQueue(size_t queued) { mHeap.reserve(queued); }
+    // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
+    // where every slab's queue is copied).
+    void compactQueue();
     size_t queued() const { return mHeap.size(); }
 
     // End of the volume: every vertex still open becomes final (none should remain in an unbounded

@@ -26,6 +26,8 @@
 #include <sstream>
 #include <thread>
 
+#include <malloc.h>
+
 namespace vdb_isosimp {
 
 namespace {
@@ -285,6 +287,18 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                 std::lock_guard<std::mutex> lock(progressMutex);
                 return !progress->update(double(done) / double(blocks.size()), d->faceCount());
             });
+    // A slab's first layer of leaves is also sampled by the slab below: it is released once that slab
+    // is done and this slab has passed the layer, whichever comes second (else every seam would keep a
+    // full layer of voxels loaded to the end: 19 MB on a 448^3 volume).
+    std::vector<int> seamEvents(slabs.size(), 0);
+    std::mutex seamMutex;
+    auto seamEvent = [&](size_t si) {
+        {
+            std::lock_guard<std::mutex> lock(seamMutex);
+            if (++seamEvents[si] < 2) return;
+        }
+        for (size_t b = slabs[si].begin; b < slabs[si].end && blocks[b][2] == slabs[si].zStart; ++b) vol->releaseLeaf(blocks[b]);
+    };
     auto runSlab = [&](size_t si) {
         const Slab& slab = slabs[si];
         Integrator& integ = *integs[si];
@@ -327,15 +341,19 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                         integ.add(*m);
                         // The slab below still samples this slab's first layer of leaves.
                         if (!seam || blocks[m->blockIndex][2] != slab.zStart) vol->releaseLeaf(blocks[m->blockIndex]);
+                        else if (m->blockIndex + 1 == slab.end || blocks[m->blockIndex + 1][2] != slab.zStart) seamEvent(si);
                         std::lock_guard<std::mutex> lock(progressMutex);
                         sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         ++done;
                         if (done % 64 == 0) vol->trimInputMapping();
+                        // Released leaves are small heap objects: give the pages they emptied back.
+                        if (done % 4096 == 0) malloc_trim(0);
                         if (progress && (done % 256 == 0 || done == blocks.size()) &&
                             !progress->update(double(done) / double(blocks.size()), integ.decimator().faceCount()))
                             throw Cancelled("cancelled");
                     }));
         integ.finishSlab();
+        if (si + 1 < slabs.size()) seamEvent(si + 1);
     };
     const double slabsStart = clock.seconds();
     tbb::parallel_for(size_t(0), slabs.size(), runSlab);
@@ -354,8 +372,13 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     }
     Integrator& whole = *integs[0];
     size_t queued = 0;
-    for (const auto& integ : integs) queued += integ->decimator().queued();
-    whole.decimator().reserveQueue(queued);
+    for (const auto& integ : integs) {
+        integ->decimator().compactQueue();
+        queued += integ->decimator().queued();
+    }
+    // A quarter more for the welded seam's edges and the final pass's pushes: growing past an exact
+    // reservation would double the largest array of the run.
+    whole.decimator().reserveQueue(queued + queued / 4 + 1024);
     for (size_t i = 1; i < integs.size(); ++i) {
         whole.decimator().absorb(integs[i]->decimator());
         integs[i].reset();
