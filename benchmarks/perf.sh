@@ -75,7 +75,7 @@ if [ "$SCALE" = 1 ]; then
   fi
   timed "$B/vdb_isosimp" "$SV" -f 1000000 -q -o "$W/scale.ply" --report "$W/scale.json"
   echo
-  echo "scale run: gyroid-band ${SN}^3, period $SP ($GEN, $(($(stat -c %s "$SV") / 1048576)) MB on disk)"
+  echo "scale run: gyroid-band ${SN}^3, period $SP ($GEN, $(($(stat -L -c %s "$SV") / 1048576)) MB on disk)"
   echo "  $(field faces_full "$W/scale.json") -> $(field faces_out "$W/scale.json") faces, $SEC s, peak RSS $MB MB"
   awk -v s="$SEC" -v m="$MB" 'BEGIN { printf "  time %s (<= 900 s), peak RSS %s (<= 2048 MB)\n", s <= 900 ? "pass" : "FAIL", m <= 2048 ? "pass" : "FAIL" }'
   "$B/mesh_stats" "$W/scale.ply" | grep -E "boundary edges|non-manifold|components|closed" | sed 's/^/  /'

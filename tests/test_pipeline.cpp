@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <set>
@@ -179,6 +180,26 @@ TEST(Pipeline, ClosedManifoldOutwardAtEveryRatio)
             const double bound = target + double(ratioOptions(r).batchFaces) + double(res.report.maxUncontractibleFaces);
             EXPECT_LE(double(res.report.maxIntermediateFaces), 1.01 * bound) << what;
         }
+}
+
+// The scale run's volume kind (make_volume gyroid-band: a narrow-band level set of the gyroid clipped to
+// a box), small: closed and outward at full resolution and simplified, enclosing the same volume.
+TEST(Pipeline, GyroidBandIsClosedAtFullResolutionAndSimplified)
+{
+    const std::string path = ::testing::TempDir() + "/gyroid_band96_" + std::to_string(::getpid()) + ".vdb";
+    const std::string cmd = std::string(MAKE_VOLUME_EXE) + " gyroid-band -n 96 --period 24 -o " + path + " > /dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    const Result full = simplifyFile(path, ratioOptions(1.0));
+    expectClosedOutward(full.mesh, true, "gyroid-band R=1");
+    EXPECT_GE(full.report.facesFull, 50000u);
+    const Result simple = simplifyFile(path, ratioOptions(0.05));
+    expectClosedOutward(simple.mesh, false, "gyroid-band R=0.05");
+    const double target = 0.05 * double(full.report.facesFull);
+    EXPECT_LE(std::abs(double(simple.report.facesOut) - target), 0.02 * target) << simple.report.facesOut;
+    const double vFull = eval::computeMeshStats(full.mesh).signedVolume;
+    const double vSimple = eval::computeMeshStats(simple.mesh).signedVolume;
+    EXPECT_NEAR(vSimple, vFull, 0.02 * vFull);
+    std::remove(path.c_str());
 }
 
 TEST(Pipeline, AbsoluteFaceTarget)
