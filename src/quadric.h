@@ -9,7 +9,7 @@ namespace vdb_isosimp {
 
 struct Quadric {
     // xx xy xz xw yy yz yw zz zw ww
-    std::array<float, 10> q{};
+    std::array<double, 10> q{};
 
     // Adds the plane n·x + d = 0 (n unit) with weight w (the face's area, so big faces count more).
     void addPlane(const std::array<double, 3>& n, double d, double w)
