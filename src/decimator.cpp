@@ -213,7 +213,7 @@ void Decimator::push(uint32_t a, uint32_t b)
     const float f = float(cost);
     uint32_t bits;
     std::memcpy(&bits, &f, sizeof bits);
-    heapPush(mHeap, Candidate{uint64_t(bits) << 32 | a, b, mVerts[a].version + mVerts[b].version});
+    heapPush(mHeap, Candidate::make(bits, a, b, mVerts[a].version + mVerts[b].version));
 }
 
 bool Decimator::edgeExists(uint32_t a, uint32_t b) const
@@ -316,7 +316,7 @@ void Decimator::absorb(Decimator& other)
         const uint32_t a = remap[c.a()], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
         const uint32_t stamp = mVerts[a].version + mVerts[b].version - (other.current(c) ? 0 : 1);
-        heapPush(mHeap, Candidate{(c.key >> 32) << 32 | std::min(a, b), std::max(a, b), stamp});
+        heapPush(mHeap, Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
     }
     for (const auto& [a, b] : other.mRefused)
         if (other.mVerts[a].alive && other.mVerts[b].alive) mRefused.push_back({std::min(remap[a], remap[b]), std::max(remap[a], remap[b])});
@@ -470,11 +470,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         else mRefused.push_back({a, b});
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
-    if (mHeap.size() > 2 * mFaceCount + 1024) {
-        mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !edgeExists(c.a(), c.b); }),
-                    mHeap.end());
-        heapify(mHeap);
-    }
+    if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
     return collapses;
 }
 
@@ -595,11 +591,16 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
     return dropped;
 }
 
-void Decimator::compactQueue()
+void Decimator::dropDeadEntries()
 {
     mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !edgeExists(c.a(), c.b); }),
                 mHeap.end());
     heapify(mHeap);
+}
+
+void Decimator::compactQueue()
+{
+    dropDeadEntries();
     mHeap.shrink_to_fit();
 }
 

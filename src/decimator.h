@@ -107,6 +107,11 @@ private:
         uint64_t key;  // cost (float bits) << 32 | lower end
         uint32_t b, stamp;
         uint32_t a() const { return uint32_t(key); }
+        uint32_t costBits() const { return uint32_t(key >> 32); }
+        static Candidate make(uint32_t costBits, uint32_t a, uint32_t b, uint32_t stamp)
+        {
+            return {uint64_t(costBits) << 32 | a, b, stamp};
+        }
     };
 
     uint32_t newVertex(const std::array<double, 3>& p);
@@ -120,6 +125,7 @@ private:
     void push(uint32_t a, uint32_t b);
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
+    void dropDeadEntries();
     bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
