@@ -98,7 +98,8 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
     Vertex& v = mVerts[id];
     v.p = p;
     v.q = PackedQuadric{};
-    ++v.version;  // a reused slot must not match stale queue entries
+    ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
+    ++v.ring;
     v.alive = true;
     v.final = false;
     v.head = kNone;
@@ -318,8 +319,12 @@ void Decimator::absorb(Decimator& other)
         const uint32_t stamp = mVerts[a].version + mVerts[b].version - (other.current(c) ? 0 : 1);
         heapPush(mHeap, Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
     }
-    for (const auto& [a, b] : other.mRefused)
-        if (other.mVerts[a].alive && other.mVerts[b].alive) mRefused.push_back({std::min(remap[a], remap[b]), std::max(remap[a], remap[b])});
+    // Refused entries come along marked as changed: retried in the next pass.
+    for (const Refused& r : other.mRefused)
+        if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) {
+            const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
+            mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring - 1});
+        }
     other = Decimator{};
 }
 
@@ -440,6 +445,8 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     vk.q.pack(edgeQuadric(vk.p, vk.q, vg.p, vg.q).shifted(sub(target, vk.p)));
     vk.p = target;
     ++vk.version;
+    ++vk.ring;
+    for (uint32_t n : ring) ++mVerts[n].ring;
     killVertex(gone);
     // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
     // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
@@ -452,10 +459,15 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
 size_t Decimator::decimateTo(size_t targetFaces)
 {
     size_t collapses = 0;
-    // Edges refused last time (link condition, fold-overs) get another chance: their rings changed.
-    for (const auto& [a, b] : mRefused)
-        if (edgeExists(a, b)) push(a, b);
-    mRefused.clear();
+    // Edges refused earlier (link condition, fold-overs) get another chance once the faces around an
+    // end have changed; the others stay refused without a queue round trip.
+    size_t kept = 0;
+    for (const Refused& r : mRefused) {
+        if (!mVerts[r.a].alive || !mVerts[r.b].alive) continue;
+        if (mVerts[r.a].ring + mVerts[r.b].ring == r.stamp) mRefused[kept++] = r;
+        else if (edgeExists(r.a, r.b)) push(r.a, r.b);
+    }
+    mRefused.resize(kept);
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = heapPop(mHeap);
@@ -466,8 +478,9 @@ size_t Decimator::decimateTo(size_t targetFaces)
             if (edgeExists(a, b)) push(a, b);
             continue;
         }
+        ++mAttempts;
         if (collapse(a, b)) ++collapses;
-        else mRefused.push_back({a, b});
+        else mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring});
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
     if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
