@@ -131,6 +131,7 @@ private:
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
     void dropDeadEntries();
+    void orderQueue();
     bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
@@ -141,6 +142,7 @@ private:
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     std::vector<Candidate> mHeap;
+    bool mHeapUnordered = false;  // absorb() appended entries; heapified before the next use
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
     // the sum of both ends' ring counters at refusal. (Closed tetrahedra in noisy data, refused at every
     // batch, were a quarter of all collapse attempts before.)
