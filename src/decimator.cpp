@@ -25,67 +25,6 @@ constexpr double kMinShape = 1e-5;
 // Below this, an existing face counts as degenerate (zero area, up to rounding) and is cleaned up.
 constexpr double kDegenerateShape = 1e-10;
 
-// Queue order: cost, then the lower end, then the higher one, so the collapse sequence never depends
-// on heap internals. Cost and lower end share one 64-bit key (non-negative floats order like their
-// bits), which keeps the hottest comparison to one integer compare.
-template <typename C>
-bool before(const C& x, const C& y)
-{
-    return x.key != y.key ? x.key < y.key : x.b < y.b;
-}
-
-// A 4-ary min-heap: half the depth of a binary heap and siblings in one cache line, which matters
-// because popping the queue is the hottest loop of the decimator.
-template <typename C>
-void heapPush(std::vector<C>& h, const C& c)
-{
-    size_t i = h.size();
-    h.push_back(c);
-    while (i > 0) {
-        const size_t parent = (i - 1) / 4;
-        if (!before(c, h[parent])) break;
-        h[i] = h[parent];
-        i = parent;
-    }
-    h[i] = c;
-}
-
-template <typename C>
-void siftDown(std::vector<C>& h, size_t i)
-{
-    const C c = h[i];
-    const size_t n = h.size();
-    for (;;) {
-        const size_t first = 4 * i + 1;
-        if (first >= n) break;
-        size_t best = first;
-        const size_t last = std::min(first + 4, n);
-        for (size_t k = first + 1; k < last; ++k)
-            if (before(h[k], h[best])) best = k;
-        if (!before(h[best], c)) break;
-        h[i] = h[best];
-        i = best;
-    }
-    h[i] = c;
-}
-
-template <typename C>
-C heapPop(std::vector<C>& h)
-{
-    const C top = h.front();
-    h.front() = h.back();
-    h.pop_back();
-    if (!h.empty()) siftDown(h, 0);
-    return top;
-}
-
-template <typename C>
-void heapify(std::vector<C>& h)
-{
-    for (size_t i = h.size() / 4 + 1; i-- > 0;)
-        if (i < h.size()) siftDown(h, i);
-}
-
 } // namespace
 
 uint32_t Decimator::newVertex(const std::array<double, 3>& p)
@@ -210,21 +149,14 @@ std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost)
     return {va.p[0] + y[0], va.p[1] + y[1], va.p[2] + y[2]};
 }
 
-void Decimator::orderQueue()
-{
-    if (mHeapUnordered) heapify(mHeap);
-    mHeapUnordered = false;
-}
-
 void Decimator::push(uint32_t a, uint32_t b)
 {
-    orderQueue();
     double cost;
     placement(a, b, &cost);
     const float f = float(cost);
     uint32_t bits;
     std::memcpy(&bits, &f, sizeof bits);
-    heapPush(mHeap, Candidate::make(bits, a, b, mVerts[a].version + mVerts[b].version));
+    mHeap.push(Candidate::make(bits, a, b, mVerts[a].version + mVerts[b].version));
 }
 
 bool Decimator::edgeExists(uint32_t a, uint32_t b) const
@@ -327,11 +259,10 @@ void Decimator::absorb(Decimator& other)
         const uint32_t a = remap[c.a()], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
         const uint32_t stamp = mVerts[a].version + mVerts[b].version - (other.current(c) ? 0 : 1);
-        mHeap.push_back(Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
+        // Appended in bulk and ordered once when the queue is next used: one linear heapify instead
+        // of a sift per entry (millions at R = 0.2).
+        mHeap.append(Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
     }
-    // Appended in bulk and ordered once when the queue is next used: one linear heapify instead of a
-    // sift per entry (millions at R = 0.2).
-    mHeapUnordered = true;
     // Refused entries come along marked as changed: retried in the next pass.
     for (const Refused& r : other.mRefused)
         if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) {
@@ -472,7 +403,6 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
 size_t Decimator::decimateTo(size_t targetFaces)
 {
     size_t collapses = 0;
-    orderQueue();
     // Edges refused earlier (link condition, fold-overs) get another chance once the faces around an
     // end have changed; the others stay refused without a queue round trip.
     size_t kept = 0;
@@ -484,7 +414,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
     mRefused.resize(kept);
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
-        const Candidate c = heapPop(mHeap);
+        const Candidate c = mHeap.pop();
         const uint32_t a = c.a(), b = c.b;
         if (!current(c)) {
             // An end changed since the entry was queued: requeue at today's cost (it comes straight
@@ -635,22 +565,18 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
 
 void Decimator::dropDeadEntries()
 {
-    mHeap.erase(std::remove_if(mHeap.begin(), mHeap.end(), [&](const Candidate& c) { return !edgeExists(c.a(), c.b); }),
-                mHeap.end());
-    heapify(mHeap);
-    mHeapUnordered = false;
+    mHeap.eraseIf([&](const Candidate& c) { return !edgeExists(c.a(), c.b); });
 }
 
 void Decimator::compactQueue()
 {
     dropDeadEntries();
-    mHeap.shrink_to_fit();
+    mHeap.shrinkToFit();
 }
 
 void Decimator::requeueAll()
 {
     mHeap.clear();
-    mHeapUnordered = false;
     mRefused.clear();
     for (uint32_t v = 0; v < mVerts.size(); ++v) {
         if (!mVerts[v].alive || !mVerts[v].final) continue;
@@ -663,6 +589,8 @@ void Decimator::requeueAll()
 Mesh Decimator::mesh() const
 {
     Mesh m;
+    m.points.reserve(mVertexCount);
+    m.triangles.reserve(mFaceCount);
     std::vector<uint32_t> remap(mVerts.size(), UINT32_MAX);
     // Vertices and faces in slot order: deterministic for a deterministic input sequence.
     for (uint32_t v = 0; v < mVerts.size(); ++v) {

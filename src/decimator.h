@@ -19,6 +19,7 @@
 #include "chunked_vector.h"
 #include "marching_cubes.h"
 #include "mesh.h"
+#include "quad_heap.h"
 #include "quadric.h"
 
 namespace vdb_isosimp {
@@ -117,6 +118,10 @@ private:
         {
             return {uint64_t(costBits) << 32 | a, b, stamp};
         }
+        // Queue order: cost, then the lower end, then the higher one, so the collapse sequence never
+        // depends on heap internals. Cost and lower end share one 64-bit key (non-negative floats
+        // order like their bits): the hottest comparison is one integer compare.
+        bool operator<(const Candidate& o) const { return key != o.key ? key < o.key : b < o.b; }
     };
 
     uint32_t newVertex(const std::array<double, 3>& p);
@@ -131,7 +136,6 @@ private:
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
     void dropDeadEntries();
-    void orderQueue();
     bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
@@ -141,8 +145,7 @@ private:
     ChunkedVector<Face> mFaces;
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
-    std::vector<Candidate> mHeap;
-    bool mHeapUnordered = false;  // absorb() appended entries; heapified before the next use
+    QuadHeap<Candidate> mHeap;
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
     // the sum of both ends' ring counters at refusal. (Closed tetrahedra in noisy data, refused at every
     // batch, were a quarter of all collapse attempts before.)
