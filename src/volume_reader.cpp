@@ -262,18 +262,21 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
 void Volume::trimInputMapping() const
 {
     if (!mFromFile) return;
-    char resolved[PATH_MAX];
-    if (!::realpath(mInfo.file.c_str(), resolved)) return;
-    const std::string target = resolved;
-    std::ifstream maps("/proc/self/maps");
-    std::string line;
-    while (std::getline(maps, line)) {
-        // "start-end perms offset dev inode   path"
-        if (line.size() < target.size() || line.compare(line.size() - target.size(), target.size(), target) != 0) continue;
-        unsigned long start = 0, end = 0;
-        if (std::sscanf(line.c_str(), "%lx-%lx", &start, &end) != 2 || end <= start) continue;
-        ::madvise(reinterpret_cast<void*>(start), end - start, MADV_DONTNEED);
-    }
+    // The mapping exists from the first voxel read on and stays put: /proc/self/maps is read once.
+    std::call_once(mMappedOnce, [this] {
+        char resolved[PATH_MAX];
+        if (!::realpath(mInfo.file.c_str(), resolved)) return;
+        const std::string target = resolved;
+        std::ifstream maps("/proc/self/maps");
+        std::string line;
+        while (std::getline(maps, line)) {
+            // "start-end perms offset dev inode   path"
+            if (line.size() < target.size() || line.compare(line.size() - target.size(), target.size(), target) != 0) continue;
+            unsigned long start = 0, end = 0;
+            if (std::sscanf(line.c_str(), "%lx-%lx", &start, &end) == 2 && end > start) mMapped.push_back({start, end - start});
+        }
+    });
+    for (const auto& [start, length] : mMapped) ::madvise(reinterpret_cast<void*>(start), length, MADV_DONTNEED);
 }
 
 std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName)

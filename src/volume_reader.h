@@ -5,7 +5,9 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "marching_cubes.h"
@@ -56,7 +58,9 @@ public:
     // Delayed loading maps the input file; the pages read so far stay counted in the process's
     // resident memory although the voxels they held were decoded long ago. Drops those pages from
     // this process (they stay in the page cache and fault back in if read again), so resident memory
-    // follows the output rather than the input file. Safe while other threads read the file.
+    // follows the output rather than the input file. Safe while other threads read the file. Call it
+    // often (every few blocks): each leaf read faults in the pages around it too (fault-around,
+    // 64 KB), and leaves lie in the file in tree order, not in sweep order.
     void trimInputMapping() const;
     // Smallest and largest value stored in the grid (voxels, tiles and background).
     virtual std::array<double, 2> valueRange() const = 0;
@@ -64,6 +68,10 @@ public:
 protected:
     VolumeInfo mInfo;
     bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
+
+private:
+    mutable std::once_flag mMappedOnce;
+    mutable std::vector<std::pair<unsigned long, size_t>> mMapped;  // the input file's mapped ranges
 };
 
 } // namespace vdb_isosimp
