@@ -103,6 +103,15 @@ public:
             const openvdb::Coord &p = a->origin(), &q = b->origin();
             return std::make_tuple(p.z(), p.y(), p.x()) < std::make_tuple(q.z(), q.y(), q.x());
         });
+        // One more copy, never read, keeps the file mapping alive (it is shared by the buffers still
+        // on disk and is unmapped with the last of them) for as long as this volume lives, so the
+        // ranges trimInputMapping() looked up once stay the file's: after an unmap, that address
+        // range can come back as heap memory.
+        for (const LeafT* leaf : leaves)
+            if (leaf->buffer().isOutOfCore()) {
+                mKeepsMapping = std::make_unique<LeafT>(*leaf);
+                break;
+            }
         std::vector<std::unique_ptr<LeafT>> copies;
         copies.reserve(leaves.size());
         for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
@@ -176,6 +185,7 @@ public:
 private:
     typename GridT::Ptr mGrid;
     std::mutex mReleaseMutex;
+    std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
 };
 
 Affine affineOf(const openvdb::math::Transform& xform)
@@ -262,7 +272,8 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
 void Volume::trimInputMapping() const
 {
     if (!mFromFile) return;
-    // The mapping exists from the first voxel read on and stays put: /proc/self/maps is read once.
+    // The mapping exists from the open on and stays put while this volume lives (the volume keeps it
+    // alive, see layOutInSweepOrder): /proc/self/maps is read once.
     std::call_once(mMappedOnce, [this] {
         char resolved[PATH_MAX];
         if (!::realpath(mInfo.file.c_str(), resolved)) return;

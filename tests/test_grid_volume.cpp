@@ -7,6 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/mman.h>
+
+#include <cstring>
+#include <filesystem>
+
 namespace vi = vdb_isosimp;
 namespace vt = vdb_isosimp::testing;
 
@@ -73,4 +78,40 @@ TEST(GridVolume, RejectsWhatTheFileReaderRejects)
     auto empty = openvdb::FloatGrid::create(1.0f);
     empty->setName("nothing");
     EXPECT_THROW(vi::Volume::fromGrid(empty, "x"), vi::InputError);
+}
+
+TEST(FileVolume, DroppingTheInputMappingNeverTouchesOtherMemory)
+{
+    // trimInputMapping() drops the pages of the input file's mapping. The mapping is unmapped once no
+    // voxel buffer is left on disk, and its addresses may then come back as heap memory: the volume
+    // must keep it alive, or dropping "its" pages would zero live data.
+    openvdb::initialize();
+    vt::GridSpec spec;
+    spec.seed = 5;
+    auto grid = vt::randomSparseGrid(spec);
+    grid->setName("trim");
+    const std::string path = vt::writeGrid(grid, "trim_mapping");
+    auto vol = vi::Volume::open(path, "");
+    vol->trimInputMapping();  // looks the mapping up while buffers are still on disk
+    vi::Classifier c;
+    c.insideBelow = vol->info().levelSet;
+    c.iso = c.insideBelow ? 0.0 : 0.5;
+    vi::BlockSamples s;
+    const auto blocks = vol->blocks(c);
+    ASSERT_FALSE(blocks.empty());
+    for (const auto& o : blocks) {
+        vol->sample(o, s);
+        vol->releaseLeaf(o);
+    }
+    // Fresh memory of the file's size: where the mapping was, if it had gone.
+    const size_t bytes = std::filesystem::file_size(path) + 4096;
+    void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    ASSERT_NE(p, MAP_FAILED);
+    std::memset(p, 0xAB, bytes);
+    vol->trimInputMapping();
+    const unsigned char* b = static_cast<const unsigned char*>(p);
+    size_t changed = 0;
+    for (size_t i = 0; i < bytes; ++i) changed += b[i] != 0xAB;
+    ::munmap(p, bytes);
+    EXPECT_EQ(changed, 0u);
 }
