@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <sys/mman.h>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <tuple>
@@ -39,6 +40,8 @@ std::string oneLine(std::string s)
 template <typename GridT>
 class VolumeT final : public Volume {
 public:
+    using ValueT = typename GridT::ValueType;
+
     VolumeT(typename GridT::Ptr grid, VolumeInfo info, bool fromFile) : mGrid(std::move(grid))
     {
         mInfo = std::move(info);
@@ -71,14 +74,20 @@ public:
         typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
         out.origin = origin;
         constexpr int N = BlockSamples::N;
+        // The top plane of a slab's last block layer lies in the next slab's first leaf layer, whose
+        // leaves may be gone already with only their bottom plane kept (releaseSeamLeaf).
+        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + N - 1) != mSeams.end();
+        std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
         openvdb::Coord ijk;
         for (int z = 0; z < N; ++z) {
             ijk.z() = origin[2] + z;
+            const bool fromSeam = seamTop && z == N - 1;
+            if (fromSeam) seamLock.lock();  // no seam leaf is freed while its plane is read here
             for (int y = 0; y < N; ++y) {
                 ijk.y() = origin[1] + y;
                 for (int x = 0; x < N; ++x) {
                     ijk.x() = origin[0] + x;
-                    const double v = double(acc.getValue(ijk));
+                    const double v = double(fromSeam ? seamValue(acc, ijk) : acc.getValue(ijk));
                     if (!std::isfinite(v)) {
                         std::ostringstream s;
                         s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << v
@@ -120,6 +129,37 @@ public:
         for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
         for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
         ::malloc_trim(0);
+    }
+
+    // A voxel of a seam plane: from the kept bottom plane when its leaf is gone, else from the tree.
+    // Called with mSeamMutex held.
+    ValueT seamValue(typename GridT::ConstAccessor& acc, const openvdb::Coord& ijk) const
+    {
+        const openvdb::Coord leaf = ijk & ~openvdb::Int32(7);
+        const auto it = mSeamPlanes.find(std::make_tuple(leaf.x(), leaf.y(), leaf.z()));
+        if (it == mSeamPlanes.end()) return acc.getValue(ijk);
+        return it->second[size_t((ijk.y() - leaf.y()) * 8 + (ijk.x() - leaf.x()))];
+    }
+
+    void setSeams(const std::vector<int32_t>& z) override { mSeams = z; }
+
+    void releaseSeamLeaf(const std::array<int32_t, 3>& o) override
+    {
+        if (!mFromFile) return;
+        std::lock_guard<std::mutex> lock(mSeamMutex);
+        if (const auto* leaf = mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]))) {
+            std::array<ValueT, 64>& plane = mSeamPlanes[std::make_tuple(o[0], o[1], o[2])];
+            for (int y = 0; y < 8; ++y)
+                for (int x = 0; x < 8; ++x) plane[size_t(y * 8 + x)] = leaf->getValue(openvdb::Coord(o[0] + x, o[1] + y, o[2]));
+        }
+        releaseLeaf(o);
+    }
+
+    void dropSeamPlanes(int32_t z) override
+    {
+        std::lock_guard<std::mutex> lock(mSeamMutex);
+        for (auto it = mSeamPlanes.begin(); it != mSeamPlanes.end();)
+            it = std::get<2>(it->first) == z ? mSeamPlanes.erase(it) : std::next(it);
     }
 
     void releaseLeaf(const std::array<int32_t, 3>& o) override
@@ -189,6 +229,11 @@ private:
     typename GridT::Ptr mGrid;
     std::mutex mReleaseMutex;
     std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
+    // Seams: z of each slab's first leaf layer (set before extraction, read-only during it), and the
+    // bottom planes of released seam leaves, by leaf origin.
+    std::vector<int32_t> mSeams;
+    mutable std::mutex mSeamMutex;
+    std::map<std::tuple<int32_t, int32_t, int32_t>, std::array<ValueT, 64>> mSeamPlanes;
 };
 
 Affine affineOf(const openvdb::math::Transform& xform)

@@ -55,6 +55,15 @@ public:
     // integrated its voxels are dead: live voxel data stays about one layer of blocks. Call from the
     // in-order stage only; no block after L reads L, so concurrent extraction is unaffected.
     virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    // Seams between slabs processed in parallel (pipeline.cpp): a slab's first leaf layer (at one of
+    // the z given to setSeams) is also sampled by the slab below, but only its bottom voxel plane.
+    // releaseSeamLeaf keeps that plane (64 values) and frees the leaf as releaseLeaf does, so no slab
+    // holds a whole layer of voxels for its neighbour; samples of that plane come from the kept copy.
+    // dropSeamPlanes(z) frees the planes at z once the slab below is done. Same calling rules as
+    // releaseLeaf; setSeams before any sampling.
+    virtual void setSeams(const std::vector<int32_t>& z) = 0;
+    virtual void releaseSeamLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    virtual void dropSeamPlanes(int32_t z) = 0;
     // Delayed loading maps the input file; the pages read so far stay counted in the process's
     // resident memory although the voxels they held were decoded long ago. Drops those pages from
     // this process (they stay in the page cache and fault back in if read again), so resident memory
