@@ -73,7 +73,7 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, const C
                                                                 [&](std::pair<size_t, uint64_t> r) {
                                                                     total += r.second;
                                                                     vol.releaseLeaf(blocks[r.first]);
-                                                                    if (r.first % 16 == 0) vol.trimInputMapping();
+                                                                    if (r.first % Volume::kTrimEveryBlocks == 0) vol.trimInputMapping();
                                                                 }));
     return total;
 }
@@ -343,7 +343,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
                         std::lock_guard<std::mutex> lock(progressMutex);
                         sampled = {std::min(sampled[0], m->minValue), std::max(sampled[1], m->maxValue)};
                         ++done;
-                        if (done % 16 == 0) vol->trimInputMapping();
+                        if (done % Volume::kTrimEveryBlocks == 0) vol->trimInputMapping();
                         // Released leaves are small heap objects: give the pages they emptied back.
                         if (done % 4096 == 0) malloc_trim(0);
                         if (progress && (done % 256 == 0 || done == blocks.size()) &&

@@ -20,10 +20,10 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <tuple>
 
 #include <malloc.h>
-#include <sstream>
 
 namespace vdb_isosimp {
 
@@ -47,6 +47,7 @@ public:
         mInfo = std::move(info);
         mFromFile = fromFile;
         if (fromFile) {
+            keepMappingAlive();
             trimInputMapping();  // the topology was read through the mapping: 11 MB of a 300 MB file
             layOutInSweepOrder();
         }
@@ -100,6 +101,21 @@ public:
         }
     }
 
+    // One copy of a leaf still on disk, never read, keeps the file mapping alive (it is shared by the
+    // buffers still on disk and is unmapped with the last of them) for as long as this volume lives,
+    // so the ranges trimInputMapping() looks up once stay the file's: after an unmap, that address
+    // range can come back as heap memory. With no leaf on disk (delayed loading off, or tiles only)
+    // nothing holds the mapping, and trimming stays off.
+    void keepMappingAlive()
+    {
+        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it)
+            if (it->buffer().isOutOfCore()) {
+                mKeepsMapping = std::make_unique<typename GridT::TreeType::LeafNodeType>(*it.getLeaf());
+                mHoldsMapping = true;
+                return;
+            }
+    }
+
     // Leaf nodes come off the file in tree order (z fastest inside each internal node) but are deleted
     // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
     // and the topology's resident memory stayed whole although its nodes were gone (34 MB of heap on a
@@ -115,15 +131,6 @@ public:
             const openvdb::Coord &p = a->origin(), &q = b->origin();
             return std::make_tuple(p.z(), p.y(), p.x()) < std::make_tuple(q.z(), q.y(), q.x());
         });
-        // One more copy, never read, keeps the file mapping alive (it is shared by the buffers still
-        // on disk and is unmapped with the last of them) for as long as this volume lives, so the
-        // ranges trimInputMapping() looked up once stay the file's: after an unmap, that address
-        // range can come back as heap memory.
-        for (const LeafT* leaf : leaves)
-            if (leaf->buffer().isOutOfCore()) {
-                mKeepsMapping = std::make_unique<LeafT>(*leaf);
-                break;
-            }
         std::vector<std::unique_ptr<LeafT>> copies;
         copies.reserve(leaves.size());
         for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
@@ -319,7 +326,7 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
 
 void Volume::trimInputMapping() const
 {
-    if (!mFromFile) return;
+    if (!mHoldsMapping) return;
     // The mapping exists from the open on and stays put while this volume lives (the volume keeps it
     // alive, see layOutInSweepOrder): /proc/self/maps is read once.
     std::call_once(mMappedOnce, [this] {

@@ -64,6 +64,9 @@ public:
     virtual void setSeams(const std::vector<int32_t>& z) = 0;
     virtual void releaseSeamLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     virtual void dropSeamPlanes(int32_t z) = 0;
+    // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
+    // a few MB (more often, the other threads' TLB flushes cost time).
+    static constexpr size_t kTrimEveryBlocks = 16;
     // Delayed loading maps the input file; the pages read so far stay counted in the process's
     // resident memory although the voxels they held were decoded long ago. Drops those pages from
     // this process (they stay in the page cache and fault back in if read again), so resident memory
@@ -77,6 +80,7 @@ public:
 protected:
     VolumeInfo mInfo;
     bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
+    bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
 
 private:
     mutable std::once_flag mMappedOnce;
