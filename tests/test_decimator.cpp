@@ -79,6 +79,44 @@ TEST(Decimator, OctahedronShrinksToATetrahedronAndStopsThere)
     EXPECT_EQ(m.triangles.size(), 4u);
 }
 
+// A closed octahedron around `centre`, every vertex final; keys start at `firstKey`.
+BlockMesh octahedron(std::array<double, 3> centre, int32_t firstKey)
+{
+    BlockMesh b;
+    const std::array<double, 3> p[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    for (int k = 0; k < 6; ++k) {
+        b.keys.push_back(makeEdgeKey(firstKey + k, 0, 0, 0));
+        b.positions.push_back({centre[0] + p[k][0], centre[1] + p[k][1], centre[2] + p[k][2]});
+        b.finalAfterBlock.push_back(1);
+    }
+    b.triangles = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    return b;
+}
+
+TEST(Decimator, QueuedPairsWhoseSlotWentToANewVertexAreNeverCollapsed)
+{
+    // One collapse on the first octahedron leaves queue entries naming the dead end. The next block's
+    // first vertex takes the dead end's slot, so those entries now pair two live, final vertices that
+    // share no face: the queue re-evaluates them without a ring walk, and collapse() must refuse them.
+    Decimator d;
+    d.addBlock(octahedron({0, 0, 0}, 0));
+    EXPECT_EQ(d.decimateTo(6), 1u);
+    d.addBlock(octahedron({100, 0, 0}, 100));
+    for (int pass = 0; pass < 4; ++pass) d.decimateTo(0);
+    d.requeueAll();
+    d.decimateTo(0);
+    // Each octahedron became a tetrahedron on its own: no face joins the two.
+    const Mesh m = d.mesh();
+    ASSERT_EQ(m.triangles.size(), 8u);
+    size_t nearFirst = 0;
+    for (const auto& t : m.triangles) {
+        const bool a = m.points[t[0]][0] < 50, b = m.points[t[1]][0] < 50, c = m.points[t[2]][0] < 50;
+        EXPECT_TRUE(a == b && b == c) << "a face joins the two octahedra";
+        nearFirst += a;
+    }
+    EXPECT_EQ(nearFirst, 4u);
+}
+
 struct Entry {
     uint64_t key;
     uint32_t id, pad;
