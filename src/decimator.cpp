@@ -169,6 +169,11 @@ bool Decimator::edgeExists(uint32_t a, uint32_t b) const
     return false;
 }
 
+bool Decimator::liveFinalPair(uint32_t a, uint32_t b) const
+{
+    return mVerts[a].alive && mVerts[b].alive && mVerts[a].final && mVerts[b].final;
+}
+
 bool Decimator::current(const Candidate& c) const
 {
     const Vertex& va = mVerts[c.a()];
@@ -423,7 +428,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
             // edges, it removes none of the survivor's), so it is one unless a dead end's slot went to
             // a new vertex meanwhile (3% of these pairs on noise). collapse() finds no shared face
             // for such a pair and refuses it, so they cost one attempt and change no collapse.
-            if (mVerts[a].alive && mVerts[b].alive && mVerts[a].final && mVerts[b].final) push(a, b);
+            if (liveFinalPair(a, b)) push(a, b);
             continue;
         }
         ++mAttempts;
@@ -569,7 +574,8 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
 
 void Decimator::dropDeadEntries()
 {
-    mHeap.eraseIf([&](const Candidate& c) { return !edgeExists(c.a(), c.b); });
+    // A pair of live vertices is still an edge (see decimateTo): no ring walk per entry.
+    mHeap.eraseIf([&](const Candidate& c) { return !liveFinalPair(c.a(), c.b); });
 }
 
 void Decimator::compactQueue()

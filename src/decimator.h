@@ -135,6 +135,7 @@ private:
     void push(uint32_t a, uint32_t b);
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
+    bool liveFinalPair(uint32_t a, uint32_t b) const;
     void dropDeadEntries();
     bool collapse(uint32_t a, uint32_t b);
     bool degenerate(uint32_t f) const;
