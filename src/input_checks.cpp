@@ -230,14 +230,14 @@ std::string formatBytes(uint64_t b)
     return buf;
 }
 
-MemoryEstimate checkMemoryBudget(const std::string& path, const Options& options, uint64_t limit)
+MemoryEstimate checkMemoryBudget(const std::string& path, const VolumeInfo& info, const Options& options,
+                                 uint64_t limit)
 {
-    const std::unique_ptr<Volume> vol = Volume::open(path, options.gridName);
-    const MemoryEstimate e = estimateMemory(vol->info(), options);
+    const MemoryEstimate e = estimateMemory(info, options);
     if (limit > 0 && e.total() > limit) {
         std::ostringstream s;
         s << path << ": estimated peak memory " << formatBytes(e.total()) << " exceeds the limit of "
-          << formatBytes(limit) << " (grid '" << vol->info().gridName << "': " << vol->info().leafCount
+          << formatBytes(limit) << " (grid '" << info.gridName << "': " << info.leafCount
           << " leaves; mesh " << formatBytes(e.mesh) << ", topology " << formatBytes(e.topology)
           << "); lower --ratio, --faces or --batch, or raise --max-memory";
         throw InputError(s.str());

@@ -50,8 +50,9 @@ uint64_t machineMemoryBytes();
 // "1.5 GiB", "300 MiB".
 std::string formatBytes(uint64_t bytes);
 
-// Opens the grid (topology only), estimates the run's memory and throws InputError naming the file
+// Estimates the run's memory from the opened grid's topology and throws InputError naming the file
 // when it exceeds `limitBytes` (0: no limit). Returns the estimate.
-MemoryEstimate checkMemoryBudget(const std::string& path, const Options& options, uint64_t limitBytes);
+MemoryEstimate checkMemoryBudget(const std::string& path, const VolumeInfo& info, const Options& options,
+                                 uint64_t limitBytes);
 
 } // namespace vdb_isosimp

@@ -7,6 +7,7 @@
 #include "decimator.h"
 #include "edge_key.h"
 #include "errors.h"
+#include "input_checks.h"
 #include "marching_cubes.h"
 #include "pipeline_internal.h"
 #include "run_stats.h"
@@ -221,6 +222,8 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     // Open.
     std::unique_ptr<Volume> vol = open();
     const VolumeInfo info = vol->info();  // a copy: the volume is opened again after counting
+    // On this open, not one of its own: reading the topology of a large file takes a while (0.4 s at 448^3).
+    if (opt.maxMemoryBytes > 0) checkMemoryBudget(path, info, opt, opt.maxMemoryBytes);
     Result result;
     Report& rep = result.report;
     rep.file = path;

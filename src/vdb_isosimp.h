@@ -49,6 +49,9 @@ struct Options {
     double initialRatio = 0.5;
     // Worker threads; 0: all cores. The output does not depend on it.
     int threads = 0;
+    // Refuse to start (InputError naming the file) when the peak memory estimated from the grid's
+    // topology exceeds this many bytes; checked on the opened grid before any voxel is read. 0: no limit.
+    uint64_t maxMemoryBytes = 0;
 };
 
 // One decimation pass, for plots of the intermediate mesh (paper, figures 5 and 9).

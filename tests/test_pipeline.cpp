@@ -241,6 +241,21 @@ TEST(Pipeline, QualityMatchesOpenMeshDecimater)
     }
 }
 
+TEST(Pipeline, MemoryBudgetIsCheckedOnTheOpenedGrid)
+{
+    Options o = ratioOptions(0.2);
+    o.maxMemoryBytes = 1 << 20;  // below the fixed base of the estimate: always refused
+    try {
+        simplifyFile(sphereFile(), o);
+        ADD_FAILURE() << "a 1 MiB budget was accepted";
+    } catch (const InputError& e) {
+        const std::string what = e.what();
+        EXPECT_EQ(what.rfind(sphereFile() + ": estimated peak memory", 0), 0u) << what;
+    }
+    o.maxMemoryBytes = 64ull << 30;
+    EXPECT_GT(simplifyFile(sphereFile(), o).report.facesOut, 0u);
+}
+
 TEST(Pipeline, BadOptionsAreRejected)
 {
     EXPECT_THROW(simplifyFile(sphereFile(), ratioOptions(0.0)), InputError);

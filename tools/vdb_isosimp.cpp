@@ -319,9 +319,9 @@ int main(int argc, char** argv)
         return 2;
     }
     if (output.empty()) output = stemOf(input) + ".ply";
-    uint64_t memoryLimit = 0;
-    if (maxMemory == "machine") memoryLimit = machineMemoryBytes();
-    else if (!parseMemorySize(maxMemory, memoryLimit)) {
+    // Checked by the pipeline on the grid it opens (opening it here too cost a second topology read).
+    if (maxMemory == "machine") opt.maxMemoryBytes = machineMemoryBytes();
+    else if (!parseMemorySize(maxMemory, opt.maxMemoryBytes)) {
         std::cerr << "vdb_isosimp: --max-memory: '" << maxMemory << "' is not a size (e.g. 8G, 512M, 0) (see --help)\n";
         return 2;
     }
@@ -342,7 +342,6 @@ int main(int argc, char** argv)
         for (const std::string* p : {&reportPath, &tracePath})
             if (!p->empty()) temporaries.push_back(temporaryFor(*p));
         Watchdog watchdog(temporaries);
-        checkMemoryBudget(input, opt, memoryLimit);
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
         Result res = simplifyFile(input, opt, &progress);
