@@ -279,10 +279,21 @@ void Decimator::absorb(Decimator& other)
 
 size_t Decimator::finalizeRemaining()
 {
+    return finalizeOpen([](EdgeKey) { return true; });
+}
+
+size_t Decimator::finalizeOpen(const std::function<bool(EdgeKey)>& which)
+{
     std::vector<uint32_t> open;
-    for (const auto& kv : mOpen) open.push_back(kv.second);
+    for (auto it = mOpen.begin(); it != mOpen.end();) {
+        if (which(it->first)) {
+            open.push_back(it->second);
+            it = mOpen.erase(it);
+        } else {
+            ++it;
+        }
+    }
     std::sort(open.begin(), open.end());  // map order is not deterministic across runs
-    mOpen.clear();
     for (uint32_t v : open) finalize(v);
     return open.size();
 }

@@ -49,6 +49,8 @@ public:
     // End of the volume: every vertex still open becomes final (none should remain in an unbounded
     // domain; the count is returned so tests can check it).
     size_t finalizeRemaining();
+    // The open vertices whose edge key `which` accepts become final (in id order); returns how many.
+    size_t finalizeOpen(const std::function<bool(EdgeKey)>& which);
 
     // Collapses an edge of every zero-area face left over (coincident vertices where voxels sit exactly
     // at the iso-value) when a legal collapse exists, and drops tiny components that are flat all
