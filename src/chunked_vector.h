@@ -28,6 +28,10 @@ public:
         return x;
     }
 
+    // Frees the storage of chunk `c` (elements [c * kChunk, (c + 1) * kChunk)), for an array that is
+    // read once front to back before it is discarded: the elements there must not be accessed again.
+    void releaseChunk(size_t c) { mChunks[c].reset(); }
+
     template <typename Ref, typename Owner>
     struct Iter {
         Owner* owner;

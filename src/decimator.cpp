@@ -255,10 +255,12 @@ void Decimator::absorb(Decimator& other)
         mVerts[remap[v]].q = ov.q;
         mVerts[remap[v]].final = ov.final;
     }
-    for (const Face& f : other.mFaces)
-        if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
+    // Reserved with room for the seam's edges only (doubling could leave half of the largest array of
+    // the run unused), and the other's queue, then its faces, are freed as soon as they are copied:
+    // the merge is the peak of a run at R = 0.2.
+    mHeap.reserve(mHeap.size() + other.mHeap.size() + other.mHeap.size() / 16 + 4096);
     for (const Candidate& c : other.mHeap) {
         if (!other.mVerts[c.a()].alive || !other.mVerts[c.b].alive) continue;
         const uint32_t a = remap[c.a()], b = remap[c.b];
@@ -268,12 +270,18 @@ void Decimator::absorb(Decimator& other)
         // of a sift per entry (millions at R = 0.2).
         mHeap.append(Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
     }
+    other.mHeap.release();
     // Refused entries come along marked as changed: retried in the next pass.
     for (const Refused& r : other.mRefused)
         if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) {
             const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
             mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring - 1});
         }
+    for (size_t i = 0; i < other.mFaces.size(); ++i) {
+        const Face& f = other.mFaces[i];
+        if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+        if ((i + 1) % decltype(other.mFaces)::kChunk == 0) other.mFaces.releaseChunk(i / decltype(other.mFaces)::kChunk);
+    }
     other = Decimator{};
 }
 

@@ -1,4 +1,5 @@
 #include "input_checks.h"
+#include "pipeline_internal.h"
 
 #include "edge_key.h"
 #include "errors.h"
@@ -191,9 +192,9 @@ MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o)
     MemoryEstimate e;
     e.base = kBaseBytes;
     e.topology = info.topologyBytes;
-    // Live voxels: per slab the layer being extracted and the one above it, plus the seam layers
-    // kept for the slab below; 4 slabs run at once.
-    e.voxels = uint64_t(10) * info.maxLeavesPerLayer * 512u * info.valueBytes;
+    // Live voxels: per slab the layer being extracted and the one above it, every slab running at
+    // once (as many cores), plus the seam planes kept for the slabs below (at most a layer in all).
+    e.voxels = uint64_t(2 * kPipelineSlabs + 1) * info.maxLeavesPerLayer * 512u * info.valueBytes;
     // 8 candidate blocks per leaf of 12 bytes, doubled for the vector's growth and the sort.
     e.blocks = info.leafCount * 8u * 12u * 2u;
     const double fullFaces = kFacesPerLeaf * double(info.leafCount);
