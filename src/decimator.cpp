@@ -231,6 +231,18 @@ void Decimator::addBlock(const BlockMesh& block)
 
 void Decimator::absorb(Decimator& other)
 {
+    // The merge is the peak of a run at R = 0.2, so each part of `other` is freed as soon as it has
+    // been copied. First what needs its vertices besides the vertices themselves: the queued edges
+    // (with whether each is stale) and the refused pairs whose ends live.
+    std::vector<Candidate> carried;
+    carried.reserve(other.mHeap.size());
+    for (const Candidate& c : other.mHeap)
+        if (other.mVerts[c.a()].alive && other.mVerts[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
+    other.mHeap.release();
+    std::vector<Refused> refused;
+    for (const Refused& r : other.mRefused)
+        if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) refused.push_back(r);
+
     std::vector<uint32_t> remap(other.mVerts.size(), UINT32_MAX);
     // Open vertices first, in key order (hash-map order is not part of the output contract).
     std::vector<std::pair<EdgeKey, uint32_t>> open(other.mOpen.begin(), other.mOpen.end());
@@ -248,39 +260,39 @@ void Decimator::absorb(Decimator& other)
             mOpen.emplace(key, remap[id]);
         }
     }
+    constexpr size_t kVertChunk = decltype(other.mVerts)::kChunk, kFaceChunk = decltype(other.mFaces)::kChunk;
     for (uint32_t v = 0; v < other.mVerts.size(); ++v) {
         const Vertex& ov = other.mVerts[v];
-        if (!ov.alive || remap[v] != UINT32_MAX) continue;
-        remap[v] = newVertex(ov.p);
-        mVerts[remap[v]].q = ov.q;
-        mVerts[remap[v]].final = ov.final;
+        if (ov.alive && remap[v] == UINT32_MAX) {
+            remap[v] = newVertex(ov.p);
+            mVerts[remap[v]].q = ov.q;
+            mVerts[remap[v]].final = ov.final;
+        }
+        if ((v + 1) % kVertChunk == 0) other.mVerts.releaseChunk(v / kVertChunk);
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
-    // Reserved with room for the seam's edges only (doubling could leave half of the largest array of
-    // the run unused), and the other's queue, then its faces, are freed as soon as they are copied:
-    // the merge is the peak of a run at R = 0.2.
-    mHeap.reserve(mHeap.size() + other.mHeap.size() + other.mHeap.size() / 16 + 4096);
-    for (const Candidate& c : other.mHeap) {
-        if (!other.mVerts[c.a()].alive || !other.mVerts[c.b].alive) continue;
+    // Reserved with room for the seam's edges only: doubling could leave half of the largest array of
+    // the run unused.
+    mHeap.reserve(mHeap.size() + carried.size() + carried.size() / 16 + 4096);
+    for (const Candidate& c : carried) {
         const uint32_t a = remap[c.a()], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
-        const uint32_t stamp = mVerts[a].version + mVerts[b].version - (other.current(c) ? 0 : 1);
+        const uint32_t stamp = mVerts[a].version + mVerts[b].version - c.stamp;
         // Appended in bulk and ordered once when the queue is next used: one linear heapify instead
         // of a sift per entry (millions at R = 0.2).
         mHeap.append(Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
     }
-    other.mHeap.release();
+    carried = {};
     // Refused entries come along marked as changed: retried in the next pass.
-    for (const Refused& r : other.mRefused)
-        if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) {
-            const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
-            mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring - 1});
-        }
+    for (const Refused& r : refused) {
+        const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
+        mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring - 1});
+    }
     for (size_t i = 0; i < other.mFaces.size(); ++i) {
         const Face& f = other.mFaces[i];
         if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
-        if ((i + 1) % decltype(other.mFaces)::kChunk == 0) other.mFaces.releaseChunk(i / decltype(other.mFaces)::kChunk);
+        if ((i + 1) % kFaceChunk == 0) other.mFaces.releaseChunk(i / kFaceChunk);
     }
     other = Decimator{};
 }
