@@ -275,13 +275,16 @@ void Decimator::absorb(Decimator& other)
     // Reserved with room for the seam's edges only: doubling could leave half of the largest array of
     // the run unused.
     mHeap.reserve(mHeap.size() + carried.size() + carried.size() / 16 + 4096);
+    const bool pushEach = mHeap.size() > carried.size();
     for (const Candidate& c : carried) {
         const uint32_t a = remap[c.a()], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
         const uint32_t stamp = mVerts[a].version + mVerts[b].version - c.stamp;
-        // Appended in bulk and ordered once when the queue is next used: one linear heapify instead
-        // of a sift per entry (millions at R = 0.2).
-        mHeap.append(Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp));
+        // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
+        // smaller one they are appended and the whole is ordered once when next used.
+        const Candidate e = Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp);
+        if (pushEach) mHeap.push(e);
+        else mHeap.append(e);
     }
     carried = {};
     // Refused entries come along marked as changed: retried in the next pass.

@@ -16,7 +16,6 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 
@@ -369,29 +368,34 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         integ.finishSlab();
         if (si + 1 < slabs.size()) vol->dropSeamPlanes(slabs[si + 1].zStart);
     };
-    // Slabs are merged in a binary tree: once both halves of a range of slabs are done, the upper
-    // half's mesh joins the lower one and the seam between them is finalised and decimated, while other
-    // ranges may still run. Only the top merge is left to the serial final pass, with one seam (merging
-    // every slab there took 1.5 s of 15.7 at 448^3). Each merged mesh drops its dead queue entries
-    // before it is copied into the next.
-    std::function<void(size_t, size_t)> runRange = [&](size_t first, size_t last) {
-        if (last - first == 1) {
-            runSlab(first);
-        } else {
-            const size_t mid = first + (last - first) / 2;
-            tbb::parallel_invoke([&] { runRange(first, mid); }, [&] { runRange(mid, last); });
-            integs[first]->absorbSlab(*integs[mid], slabs[mid].zStart);
-        }
-        integs[first]->decimator().compactQueue();
-    };
-    const size_t top = slabs.size() / 2;  // the lower half's slabs: [0, top); 0 when there is one slab
+    // Slabs run in parallel, as many at once as there are threads, and join slab 0's mesh in slab
+    // order as each is done (and all below it have joined); the seam it closes is finalised and
+    // decimated then, while the next slabs run. A slab waiting to join holds its seams open, so no
+    // more slabs start than can run: open seams hold full-resolution faces and grow with the input.
+    const size_t running = std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    size_t nextSlab = 0;
     const double slabsStart = clock.seconds();
-    if (top == 0) runRange(0, slabs.size());
-    else tbb::parallel_invoke([&] { runRange(0, top); }, [&] { runRange(top, slabs.size()); });
+    tbb::parallel_pipeline(
+        running,
+        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
+                                       [&](tbb::flow_control& fc) -> size_t {
+                                           if (nextSlab == slabs.size()) { fc.stop(); return 0; }
+                                           return nextSlab++;
+                                       }) &
+            tbb::make_filter<size_t, size_t>(tbb::filter_mode::parallel,
+                                             [&](size_t si) {
+                                                 runSlab(si);
+                                                 // Dead entries are dropped before the queue is copied.
+                                                 integs[si]->decimator().compactQueue();
+                                                 return si;
+                                             }) &
+            tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order, [&](size_t si) {
+                if (si > 0) integs[0]->absorbSlab(*integs[si], slabs[si].zStart);
+            }));
     rep.secondsSlabs = clock.seconds() - slabsStart;
     const double finalStart = clock.seconds();
 
-    // Merge the slabs in order (welding the seams by edge key) and run the final pass on the whole.
+    // Every slab has joined slab 0: the final pass runs on the whole.
     uint64_t facesGenerated = 0, intermediate = 0;
     for (const auto& integ : integs) {
         facesGenerated += integ->facesGenerated();
@@ -402,15 +406,6 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         rep.trace.insert(rep.trace.end(), st.trace.begin(), st.trace.end());
     }
     Integrator& whole = *integs[0];
-    size_t queued = 0;
-    for (const auto& integ : integs) queued += integ->decimator().queued();
-    // A quarter more for the welded seam's edges and the final pass's pushes: growing past an exact
-    // reservation would double the largest array of the run.
-    whole.decimator().reserveQueue(queued + queued / 4 + 1024);
-    if (top > 0) {
-        whole.decimator().absorb(integs[top]->decimator());
-        integs[top].reset();
-    }
     rep.maxIntermediateFaces = std::max(intermediate, uint64_t(whole.decimator().faceCount()));
 
     if (opt.targetFaces == 0) rep.facesFull = facesGenerated;
