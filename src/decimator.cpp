@@ -34,12 +34,12 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         id = mFreeVerts.back();
         mFreeVerts.pop_back();
     } else {
-        id = uint32_t(mVerts.size());
-        mVerts.emplace_back();
+        id = uint32_t(mMeta.size());
+        mGeom.emplace_back();
+        mMeta.emplace_back();
     }
-    Vertex& v = mVerts[id];
-    v.p = p;
-    v.q = PackedQuadric{};
+    mGeom[id] = {p, PackedQuadric{}};
+    VertexMeta& v = mMeta[id];
     ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
     ++v.ring;
     v.alive = true;
@@ -62,11 +62,11 @@ uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
     Face& f = mFaces[id];
     f.v = v;
     f.alive = true;
-    f.nonFinal = uint8_t(!mVerts[v[0]].final + !mVerts[v[1]].final + !mVerts[v[2]].final);
+    f.nonFinal = uint8_t(!mMeta[v[0]].final + !mMeta[v[1]].final + !mMeta[v[2]].final);
     if (f.nonFinal) ++mUncontractibleFaces;
     for (int k = 0; k < 3; ++k) {
-        f.next[k] = mVerts[v[k]].head;
-        mVerts[v[k]].head = 3 * id + uint32_t(k);
+        f.next[k] = mMeta[v[k]].head;
+        mMeta[v[k]].head = 3 * id + uint32_t(k);
     }
     ++mFaceCount;
     return id;
@@ -78,7 +78,7 @@ void Decimator::killFace(uint32_t id)
     for (uint32_t k = 0; k < 3; ++k) {
         // Unlink corner 3*id+k from its vertex's list (short: the vertex's valence).
         const uint32_t corner = 3 * id + k;
-        uint32_t* link = &mVerts[f.v[k]].head;
+        uint32_t* link = &mMeta[f.v[k]].head;
         while (*link != corner) link = &mFaces[*link / 3].next[*link % 3];
         *link = f.next[k];
     }
@@ -90,7 +90,7 @@ void Decimator::killFace(uint32_t id)
 
 void Decimator::killVertex(uint32_t v)
 {
-    Vertex& x = mVerts[v];
+    VertexMeta& x = mMeta[v];
     x.alive = false;
     x.head = kNone;
     ++x.version;
@@ -101,7 +101,7 @@ void Decimator::killVertex(uint32_t v)
 uint32_t Decimator::nextStamp()
 {
     if (mStamp >= UINT32_MAX - 4) {
-        for (Vertex& v : mVerts) v.mark = 0;
+        for (VertexMeta& v : mMeta) v.mark = 0;
         mStamp = 0;
     }
     return ++mStamp;
@@ -112,10 +112,10 @@ void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
     // Each neighbour once, in ring-walk order; a stamp per vertex replaces sorting.
     out.clear();
     const uint32_t stamp = nextStamp();
-    for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+    for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
         for (uint32_t x : mFaces[c / 3].v)
-            if (x != v && mVerts[x].mark != stamp) {
-                mVerts[x].mark = stamp;
+            if (x != v && mMeta[x].mark != stamp) {
+                mMeta[x].mark = stamp;
                 out.push_back(x);
             }
 }
@@ -130,8 +130,8 @@ static Quadric edgeQuadric(const V3& pa, const PackedQuadric& qa, const V3& pb, 
 
 std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost) const
 {
-    const Vertex& va = mVerts[a];
-    const Vertex& vb = mVerts[b];
+    const VertexGeom& va = mGeom[a];
+    const VertexGeom& vb = mGeom[b];
     const Quadric q = edgeQuadric(va.p, va.q, vb.p, vb.q);
     V3 y;  // relative to a
     if (!q.optimum(y)) {
@@ -156,13 +156,13 @@ void Decimator::push(uint32_t a, uint32_t b)
     const float f = float(cost);
     uint32_t bits;
     std::memcpy(&bits, &f, sizeof bits);
-    mHeap.push(Candidate::make(bits, a, b, mVerts[a].version + mVerts[b].version));
+    mHeap.push(Candidate::make(bits, a, b, mMeta[a].version + mMeta[b].version));
 }
 
 bool Decimator::edgeExists(uint32_t a, uint32_t b) const
 {
-    if (!mVerts[a].alive || !mVerts[b].alive || !mVerts[a].final || !mVerts[b].final) return false;
-    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+    if (!mMeta[a].alive || !mMeta[b].alive || !mMeta[a].final || !mMeta[b].final) return false;
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
         const auto& fv = mFaces[c / 3].v;
         if (fv[0] == b || fv[1] == b || fv[2] == b) return true;
     }
@@ -171,26 +171,26 @@ bool Decimator::edgeExists(uint32_t a, uint32_t b) const
 
 bool Decimator::liveFinalPair(uint32_t a, uint32_t b) const
 {
-    return mVerts[a].alive && mVerts[b].alive && mVerts[a].final && mVerts[b].final;
+    return mMeta[a].alive && mMeta[b].alive && mMeta[a].final && mMeta[b].final;
 }
 
 bool Decimator::current(const Candidate& c) const
 {
-    const Vertex& va = mVerts[c.a()];
-    const Vertex& vb = mVerts[c.b];
+    const VertexMeta& va = mMeta[c.a()];
+    const VertexMeta& vb = mMeta[c.b];
     return va.alive && vb.alive && va.version + vb.version == c.stamp;
 }
 
 void Decimator::finalize(uint32_t v)
 {
-    Vertex& vx = mVerts[v];
+    VertexMeta& vx = mMeta[v];
     vx.final = true;
     ++mFinalizations;
     for (uint32_t c = vx.head; c != kNone; c = mFaces[c / 3].next[c % 3])
         if (--mFaces[c / 3].nonFinal == 0) --mUncontractibleFaces;
     neighbours(v, mScratchA);
     for (uint32_t n : mScratchA)
-        if (mVerts[n].final) push(std::min(v, n), std::max(v, n));
+        if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
 }
 
 void Decimator::addBlock(const BlockMesh& block)
@@ -209,16 +209,16 @@ void Decimator::addBlock(const BlockMesh& block)
         const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
         newFace(v);
         // Area-weighted plane quadric of the face, added to its three corners.
-        const V3 n = cross(sub(mVerts[v[1]].p, mVerts[v[0]].p), sub(mVerts[v[2]].p, mVerts[v[0]].p));
+        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
         const double len = std::sqrt(dot(n, n));
         if (len > 0) {
             const V3 u{n[0] / len, n[1] / len, n[2] / len};
-            const double d = -dot(u, mVerts[v[0]].p);
+            const double d = -dot(u, mGeom[v[0]].p);
             for (uint32_t x : v) {
                 // The plane around each corner (it passes through all three, up to rounding).
-                Quadric q = mVerts[x].q.unpack();
-                q.addPlane(u, d + dot(u, mVerts[x].p), 0.5 * len);
-                mVerts[x].q.pack(q);
+                Quadric q = mGeom[x].q.unpack();
+                q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
+                mGeom[x].q.pack(q);
             }
         }
     }
@@ -237,13 +237,13 @@ void Decimator::absorb(Decimator& other)
     std::vector<Candidate> carried;
     carried.reserve(other.mHeap.size());
     for (const Candidate& c : other.mHeap)
-        if (other.mVerts[c.a()].alive && other.mVerts[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
+        if (other.mMeta[c.a()].alive && other.mMeta[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
     other.mHeap.release();
     std::vector<Refused> refused;
     for (const Refused& r : other.mRefused)
-        if (other.mVerts[r.a].alive && other.mVerts[r.b].alive) refused.push_back(r);
+        if (other.mMeta[r.a].alive && other.mMeta[r.b].alive) refused.push_back(r);
 
-    std::vector<uint32_t> remap(other.mVerts.size(), UINT32_MAX);
+    std::vector<uint32_t> remap(other.mMeta.size(), UINT32_MAX);
     // Open vertices first, in key order (hash-map order is not part of the output contract).
     std::vector<std::pair<EdgeKey, uint32_t>> open(other.mOpen.begin(), other.mOpen.end());
     std::sort(open.begin(), open.end());
@@ -251,24 +251,27 @@ void Decimator::absorb(Decimator& other)
         auto it = mOpen.find(key);
         if (it != mOpen.end()) {
             remap[id] = it->second;
-            Vertex& mine = mVerts[it->second];
-            const Vertex& theirs = other.mVerts[id];
+            VertexGeom& mine = mGeom[it->second];
+            const VertexGeom& theirs = other.mGeom[id];
             mine.q.pack(edgeQuadric(mine.p, mine.q, theirs.p, theirs.q));
         } else {
-            remap[id] = newVertex(other.mVerts[id].p);
-            mVerts[remap[id]].q = other.mVerts[id].q;
+            remap[id] = newVertex(other.mGeom[id].p);
+            mGeom[remap[id]].q = other.mGeom[id].q;
             mOpen.emplace(key, remap[id]);
         }
     }
-    constexpr size_t kVertChunk = decltype(other.mVerts)::kChunk, kFaceChunk = decltype(other.mFaces)::kChunk;
-    for (uint32_t v = 0; v < other.mVerts.size(); ++v) {
-        const Vertex& ov = other.mVerts[v];
-        if (ov.alive && remap[v] == UINT32_MAX) {
-            remap[v] = newVertex(ov.p);
-            mVerts[remap[v]].q = ov.q;
-            mVerts[remap[v]].final = ov.final;
+    constexpr size_t kVertChunk = decltype(other.mMeta)::kChunk, kFaceChunk = decltype(other.mFaces)::kChunk;
+    static_assert(kVertChunk == decltype(other.mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
+    for (uint32_t v = 0; v < other.mMeta.size(); ++v) {
+        if (other.mMeta[v].alive && remap[v] == UINT32_MAX) {
+            remap[v] = newVertex(other.mGeom[v].p);
+            mGeom[remap[v]].q = other.mGeom[v].q;
+            mMeta[remap[v]].final = other.mMeta[v].final;
         }
-        if ((v + 1) % kVertChunk == 0) other.mVerts.releaseChunk(v / kVertChunk);
+        if ((v + 1) % kVertChunk == 0) {
+            other.mGeom.releaseChunk(v / kVertChunk);
+            other.mMeta.releaseChunk(v / kVertChunk);
+        }
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
@@ -279,7 +282,7 @@ void Decimator::absorb(Decimator& other)
     for (const Candidate& c : carried) {
         const uint32_t a = remap[c.a()], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
-        const uint32_t stamp = mVerts[a].version + mVerts[b].version - c.stamp;
+        const uint32_t stamp = mMeta[a].version + mMeta[b].version - c.stamp;
         // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
         // smaller one they are appended and the whole is ordered once when next used.
         const Candidate e = Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp);
@@ -290,7 +293,7 @@ void Decimator::absorb(Decimator& other)
     // Refused entries come along marked as changed: retried in the next pass.
     for (const Refused& r : refused) {
         const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
-        mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring - 1});
+        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1});
     }
     for (size_t i = 0; i < other.mFaces.size(); ++i) {
         const Face& f = other.mFaces[i];
@@ -323,24 +326,24 @@ size_t Decimator::finalizeOpen(const std::function<bool(EdgeKey)>& which)
 
 bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const
 {
-    for (uint32_t c = mVerts[moved].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+    for (uint32_t c = mMeta[moved].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
         const auto& fv = mFaces[c / 3].v;
         if (fv[0] == other || fv[1] == other || fv[2] == other) continue;  // removed by the collapse
         V3 q[3];
-        for (int i = 0; i < 3; ++i) q[i] = fv[i] == moved ? p : mVerts[fv[i]].p;
+        for (int i = 0; i < 3; ++i) q[i] = fv[i] == moved ? p : mGeom[fv[i]].p;
         const V3 nNew = cross(sub(q[1], q[0]), sub(q[2], q[0]));
         const double edges = dot(sub(q[1], q[0]), sub(q[1], q[0])) + dot(sub(q[2], q[1]), sub(q[2], q[1])) +
                              dot(sub(q[0], q[2]), sub(q[0], q[2]));
         const double lenNew = std::sqrt(dot(nNew, nNew));
-        const V3& a = mVerts[fv[0]].p;
-        const V3 nOld = cross(sub(mVerts[fv[1]].p, a), sub(mVerts[fv[2]].p, a));
+        const V3& a = mGeom[fv[0]].p;
+        const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
         const double lenOld = std::sqrt(dot(nOld, nOld));
         if (!(lenNew > kMinShape * edges)) {
             // A face that was already degenerate (values exactly at the iso-value make coincident
             // vertices) may stay so: refusing would pin it forever instead of letting it be collapsed.
-            const double edgesOld = dot(sub(mVerts[fv[1]].p, a), sub(mVerts[fv[1]].p, a)) +
-                                    dot(sub(mVerts[fv[2]].p, mVerts[fv[1]].p), sub(mVerts[fv[2]].p, mVerts[fv[1]].p)) +
-                                    dot(sub(a, mVerts[fv[2]].p), sub(a, mVerts[fv[2]].p));
+            const double edgesOld = dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
+                                    dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
+                                    dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
             if (lenOld > kMinShape * edgesOld) return false;
             continue;
         }
@@ -355,7 +358,7 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     uint32_t shared[2], opposite[2];
     int ns = 0;
     size_t valenceA = 0, valenceB = 0;
-    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
         const auto& fv = mFaces[c / 3].v;
         if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
         if (ns == 2) return false;  // non-manifold edge
@@ -368,17 +371,17 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
     std::vector<uint32_t>& ring = mScratchA;
     ring.clear();
-    for (uint32_t c = mVerts[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
         for (uint32_t x : mFaces[c / 3].v)
-            if (x != a && mVerts[x].mark != inA) {
-                mVerts[x].mark = inA;
+            if (x != a && mMeta[x].mark != inA) {
+                mMeta[x].mark = inA;
                 ring.push_back(x);
             }
     size_t common = 0;
-    for (uint32_t c = mVerts[b].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceB)
+    for (uint32_t c = mMeta[b].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceB)
         for (uint32_t x : mFaces[c / 3].v) {
             if (x == b) continue;
-            uint32_t& m = mVerts[x].mark;
+            uint32_t& m = mMeta[x].mark;
             if (m == inA) {
                 m = inBoth;
                 ++common;
@@ -390,7 +393,7 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     if (common != 2) return false;
     // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
     auto hasFaceWith = [&](uint32_t v) {
-        for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
             const auto& fv = mFaces[c / 3].v;
             const bool c0 = fv[0] == opposite[0] || fv[1] == opposite[0] || fv[2] == opposite[0];
             const bool c1 = fv[0] == opposite[1] || fv[1] == opposite[1] || fv[2] == opposite[1];
@@ -400,8 +403,8 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     };
     if (hasFaceWith(a) && hasFaceWith(b)) return false;
     // The optimum first; when it would fold or degenerate a face, the ends and the midpoint.
-    const V3& pa = mVerts[a].p;
-    const V3& pb = mVerts[b].p;
+    const V3& pa = mGeom[a].p;
+    const V3& pb = mGeom[b].p;
     const V3 places[4] = {placement(a, b, nullptr), pa, pb, {(pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2, (pa[2] + pb[2]) / 2}};
     int place = 0;
     while (place < 4 && !(facesStayValid(a, b, places[place]) && facesStayValid(b, a, places[place]))) ++place;
@@ -413,8 +416,8 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     const uint32_t gone = keep == a ? b : a;
     killFace(shared[0]);
     killFace(shared[1]);
-    Vertex& vk = mVerts[keep];
-    Vertex& vg = mVerts[gone];
+    VertexMeta& vk = mMeta[keep];
+    const VertexMeta& vg = mMeta[gone];
     // Hand gone's corners to keep: rename, then splice gone's list in front of keep's.
     uint32_t last = kNone;
     for (uint32_t c = vg.head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
@@ -425,17 +428,19 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
         mFaces[last / 3].next[last % 3] = vk.head;
         vk.head = vg.head;
     }
-    vk.q.pack(edgeQuadric(vk.p, vk.q, vg.p, vg.q).shifted(sub(target, vk.p)));
-    vk.p = target;
+    VertexGeom& gk = mGeom[keep];
+    const VertexGeom& gg = mGeom[gone];
+    gk.q.pack(edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p)));
+    gk.p = target;
     ++vk.version;
     ++vk.ring;
-    for (uint32_t n : ring) ++mVerts[n].ring;
+    for (uint32_t n : ring) ++mMeta[n].ring;
     killVertex(gone);
     // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
     // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
     const uint32_t brought = gone == a ? inA : inB;
     for (uint32_t n : ring)
-        if (mVerts[n].mark == brought && n != keep && n != gone && mVerts[n].final) push(std::min(keep, n), std::max(keep, n));
+        if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
     return true;
 }
 
@@ -446,8 +451,8 @@ size_t Decimator::decimateTo(size_t targetFaces)
     // end have changed; the others stay refused without a queue round trip.
     size_t kept = 0;
     for (const Refused& r : mRefused) {
-        if (!mVerts[r.a].alive || !mVerts[r.b].alive) continue;
-        if (mVerts[r.a].ring + mVerts[r.b].ring == r.stamp) mRefused[kept++] = r;
+        if (!mMeta[r.a].alive || !mMeta[r.b].alive) continue;
+        if (mMeta[r.a].ring + mMeta[r.b].ring == r.stamp) mRefused[kept++] = r;
         else if (edgeExists(r.a, r.b)) push(r.a, r.b);
     }
     mRefused.resize(kept);
@@ -467,7 +472,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         }
         ++mAttempts;
         if (collapse(a, b)) ++collapses;
-        else mRefused.push_back({a, b, mVerts[a].ring + mVerts[b].ring});
+        else mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring});
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
     if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
@@ -479,7 +484,7 @@ bool Decimator::degenerate(uint32_t f) const
     // Far flatter than the slivers collapses may not create (kMinShape): a face of a sphere squeezed
     // to 1e-6 of its width on two axes scores about 1e-6 and is no defect, only a thin shape.
     const auto& v = mFaces[f].v;
-    const V3 &p0 = mVerts[v[0]].p, &p1 = mVerts[v[1]].p, &p2 = mVerts[v[2]].p;
+    const V3 &p0 = mGeom[v[0]].p, &p1 = mGeom[v[1]].p, &p2 = mGeom[v[2]].p;
     const V3 n = cross(sub(p1, p0), sub(p2, p0));
     const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
     if (!(std::sqrt(dot(n, n)) > kDegenerateShape * edges)) return true;
@@ -499,7 +504,7 @@ bool Decimator::dropFlatComponent(uint32_t seed)
         if (!degenerate(faces[i])) return false;
         for (uint32_t v : mFaces[faces[i]].v) {
             if (std::find(verts.begin(), verts.end(), v) == verts.end()) verts.push_back(v);
-            for (uint32_t c = mVerts[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+            for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
                 if (const uint32_t g = c / 3; std::find(faces.begin(), faces.end(), g) == faces.end()) {
                     if (faces.size() == 16) return false;
                     faces.push_back(g);
@@ -543,7 +548,7 @@ size_t Decimator::removeDegenerateFaces()
                 bool done = false;
                 for (int k = 0; k < 3 && !done; ++k) {
                     const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
-                    if (!mVerts[a].final || !mVerts[b].final) continue;
+                    if (!mMeta[a].final || !mMeta[b].final) continue;
                     done = collapse(a, b);
                 }
                 if (done || dropFlatComponent(f)) progress = rescan = true;
@@ -559,7 +564,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
 {
     if (mFaceCount <= targetFaces) return 0;
     // Components by union-find over the vertices of live faces.
-    std::vector<uint32_t> parent(mVerts.size());
+    std::vector<uint32_t> parent(mMeta.size());
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
     auto find = [&](uint32_t v) {
         while (parent[v] != v) v = parent[v] = parent[parent[v]];
@@ -572,7 +577,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
         }
     struct Component { double area = 0; uint32_t firstFace = UINT32_MAX; std::vector<uint32_t> faces; };
     std::vector<Component> comps;
-    std::vector<int64_t> index(mVerts.size(), -1);
+    std::vector<int64_t> index(mMeta.size(), -1);
     for (uint32_t f = 0; f < mFaces.size(); ++f) {
         if (!mFaces[f].alive) continue;
         const uint32_t root = find(mFaces[f].v[0]);
@@ -583,7 +588,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
         }
         Component& c = comps[size_t(index[root])];
         const auto& v = mFaces[f].v;
-        const V3 n = cross(sub(mVerts[v[1]].p, mVerts[v[0]].p), sub(mVerts[v[2]].p, mVerts[v[0]].p));
+        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
         c.area += 0.5 * std::sqrt(dot(n, n));
         c.faces.push_back(f);
     }
@@ -622,11 +627,11 @@ void Decimator::requeueAll()
 {
     mHeap.clear();
     mRefused.clear();
-    for (uint32_t v = 0; v < mVerts.size(); ++v) {
-        if (!mVerts[v].alive || !mVerts[v].final) continue;
+    for (uint32_t v = 0; v < mMeta.size(); ++v) {
+        if (!mMeta[v].alive || !mMeta[v].final) continue;
         neighbours(v, mScratchB);
         for (uint32_t n : mScratchB)
-            if (n > v && mVerts[n].final) push(v, n);
+            if (n > v && mMeta[n].final) push(v, n);
     }
 }
 
@@ -635,12 +640,12 @@ Mesh Decimator::mesh() const
     Mesh m;
     m.points.reserve(mVertexCount);
     m.triangles.reserve(mFaceCount);
-    std::vector<uint32_t> remap(mVerts.size(), UINT32_MAX);
+    std::vector<uint32_t> remap(mMeta.size(), UINT32_MAX);
     // Vertices and faces in slot order: deterministic for a deterministic input sequence.
-    for (uint32_t v = 0; v < mVerts.size(); ++v) {
-        if (!mVerts[v].alive) continue;
+    for (uint32_t v = 0; v < mMeta.size(); ++v) {
+        if (!mMeta[v].alive) continue;
         remap[v] = uint32_t(m.points.size());
-        m.points.push_back({float(mVerts[v].p[0]), float(mVerts[v].p[1]), float(mVerts[v].p[2])});
+        m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
     }
     for (const Face& f : mFaces)
         if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});

@@ -90,9 +90,15 @@ private:
     // of the corners that share its vertex, headed at the vertex. No allocation per vertex or face,
     // and a vertex's faces are walked by following `next`.
     static constexpr uint32_t kNone = UINT32_MAX;
-    struct Vertex {
+    // A vertex in two arrays: what the queue and the ring walks read on every step (20 bytes, three
+    // to a cache line) apart from the geometry the cost and fold checks need (64 bytes, one line).
+    // One 88-byte record made every queue check load a line or two of position and quadric it did
+    // not use.
+    struct VertexGeom {
         std::array<double, 3> p{};
         PackedQuadric q;  // around p
+    };
+    struct VertexMeta {
         uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
         uint32_t head = kNone; // first corner of this vertex
         uint32_t mark = 0;     // scratch stamp for ring walks (dedupe without sorting)
@@ -144,7 +150,8 @@ private:
     bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
 
-    ChunkedVector<Vertex> mVerts;
+    ChunkedVector<VertexGeom> mGeom;
+    ChunkedVector<VertexMeta> mMeta;
     ChunkedVector<Face> mFaces;
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
