@@ -36,11 +36,9 @@ public:
 
     // Moves another decimator's mesh into this one (slab merge). Open vertices with the same edge key
     // are welded and their quadrics summed; `other` is left empty. Its queued edges come along; edges
-    // at welded vertices are queued by finalizeRemaining().
+    // at welded vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
     void absorb(Decimator& other);
 
-    // Room in the queue for what absorbing other decimators will bring, so the merge reallocates once.
-    void reserveQueue(size_t queued) { mHeap.reserve(queued); }
     // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
     // where every slab's queue is copied).
     void compactQueue();

@@ -33,7 +33,6 @@ namespace vdb_isosimp {
 
 namespace {
 
-
 void checkOptions(const Options& o)
 {
     if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
@@ -149,9 +148,9 @@ public:
         mSinceLast = 0;
     }
 
-    // The slab above this one is done too: its mesh joins this one, the seam between them (edges on
-    // the plane z = seamZ, welded by key) becomes final and is decimated like a batch, in parallel
-    // with the other pair, instead of waiting for the serial final pass.
+    // The slab above the ones merged here so far is done: its mesh joins this one, and the seam between
+    // them (edges on the plane z = seamZ, welded by key) becomes final and is decimated like a batch
+    // while the next slabs run, instead of waiting for the serial final pass.
     void absorbSlab(Integrator& above, int32_t seamZ)
     {
         mDec.absorb(above.mDec);
