@@ -238,7 +238,8 @@ void Decimator::absorb(Decimator& other)
     carried.reserve(other.mHeap.size());
     for (const Candidate& c : other.mHeap)
         if (other.mMeta[c.a()].alive && other.mMeta[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
-    other.mHeap.release();
+    other.mHeap.clear();
+    other.mHeap.shrinkToFit();
     std::vector<Refused> refused;
     for (const Refused& r : other.mRefused)
         if (other.mMeta[r.a].alive && other.mMeta[r.b].alive) refused.push_back(r);

@@ -46,6 +46,19 @@ void checkOptions(const Options& o)
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
 }
 
+// First stage of the pipelines below: next, next + 1, ... up to end (exclusive), in order. The counter
+// lives with the caller: TBB calls stage bodies as const.
+tbb::filter<void, size_t> indices(size_t& next, size_t end)
+{
+    return tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order, [&next, end](tbb::flow_control& fc) -> size_t {
+        if (next == end) {
+            fc.stop();
+            return 0;
+        }
+        return next++;
+    });
+}
+
 // Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
 // on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
 // (blocks in order, as in extraction), so counting does not load the whole volume at once.
@@ -55,11 +68,7 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, const C
     size_t next = 0;
     tbb::parallel_pipeline(
         4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
-        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
-                                       [&](tbb::flow_control& fc) -> size_t {
-                                           if (next == blocks.size()) { fc.stop(); return 0; }
-                                           return next++;
-                                       }) &
+        indices(next, blocks.size()) &
             tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel,
                                                                   [&](size_t i) {
                                                                       BlockSamples s;
@@ -325,11 +334,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         std::vector<BlockMesh> slots(tokens);
         tbb::parallel_pipeline(
             tokens,
-            tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
-                                           [&](tbb::flow_control& fc) -> size_t {
-                                               if (next == slab.end) { fc.stop(); return 0; }
-                                               return next++;
-                                           }) &
+            indices(next, slab.end) &
                 tbb::make_filter<size_t, size_t>(
                     tbb::filter_mode::parallel,
                     [&](size_t i) {
@@ -376,11 +381,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     const double slabsStart = clock.seconds();
     tbb::parallel_pipeline(
         running,
-        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
-                                       [&](tbb::flow_control& fc) -> size_t {
-                                           if (nextSlab == slabs.size()) { fc.stop(); return 0; }
-                                           return nextSlab++;
-                                       }) &
+        indices(nextSlab, slabs.size()) &
             tbb::make_filter<size_t, size_t>(tbb::filter_mode::parallel,
                                              [&](size_t si) {
                                                  runSlab(si);

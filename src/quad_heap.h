@@ -40,12 +40,6 @@ public:
     bool empty() const { return size() == 0; }
     void reserve(size_t n) { mV.reserve(n + kPad); }
     void shrinkToFit() { mV.shrink_to_fit(); }
-    // Empties the heap and frees its storage.
-    void release()
-    {
-        decltype(mV)(kPad).swap(mV);
-        mUnordered = false;
-    }
     void clear()
     {
         mV.resize(kPad);
