@@ -4,6 +4,8 @@
 //   gyroid           a fog volume whose surface fills the box
 //   gyroid-band      narrow-band level set of the gyroid clipped to a box (closed surface); built leaf by leaf
 //                    in parallel, so 1024^3 and more take seconds (the scale run: >= 200M faces at full resolution)
+#include "test_volumes.h"
+
 #include <CLI/CLI.hpp>
 
 #include <openvdb/openvdb.h>
@@ -22,35 +24,6 @@
 #include <vector>
 
 namespace {
-
-// Integer hash -> [0,1): deterministic on every platform.
-double latticeValue(int64_t x, int64_t y, int64_t z, uint64_t seed)
-{
-    uint64_t h = seed * 0x9E3779B97F4A7C15ull;
-    h ^= uint64_t(x) * 0xBF58476D1CE4E5B9ull;
-    h = (h ^ (h >> 31)) * 0x94D049BB133111EBull;
-    h ^= uint64_t(y) * 0xD6E8FEB86659FD93ull;
-    h = (h ^ (h >> 29)) * 0xBF58476D1CE4E5B9ull;
-    h ^= uint64_t(z) * 0x9E3779B97F4A7C15ull;
-    h = (h ^ (h >> 32)) * 0x94D049BB133111EBull;
-    return double(h >> 11) * (1.0 / 9007199254740992.0);
-}
-
-double valueNoise(double x, double y, double z, uint64_t seed)
-{
-    const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
-    const double tx = x - fx, ty = y - fy, tz = z - fz;
-    auto s = [](double t) { return t * t * (3 - 2 * t); };
-    const double u = s(tx), v = s(ty), w = s(tz);
-    const int64_t ix = int64_t(fx), iy = int64_t(fy), iz = int64_t(fz);
-    double c[2][2][2];
-    for (int k = 0; k < 2; ++k)
-        for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) c[k][j][i] = latticeValue(ix + i, iy + j, iz + k, seed);
-    auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
-    return lerp(lerp(lerp(c[0][0][0], c[0][0][1], u), lerp(c[0][1][0], c[0][1][1], u), v),
-                lerp(lerp(c[1][0][0], c[1][0][1], u), lerp(c[1][1][0], c[1][1][1], u), v), w);
-}
 
 // Narrow-band (3 voxels) level set of the gyroid sin(xs)cos(ys)+sin(ys)cos(zs)+sin(zs)cos(xs) = 0, s = 2 pi / period,
 // intersected with the cube [3.5, size-4.5]^3 so the surface is closed: d = max(gyroid, box), negative inside.
@@ -129,9 +102,14 @@ int main(int argc, char** argv)
     int size = 96;
     uint64_t seed = 1;
     double voxel = 1.0, period = 32.0;
-    app.add_option("kind", kind, "sphere | torus | noise | gyroid | gyroid-band")
+    std::vector<std::string> kinds{"sphere", "torus", "noise", "gyroid", "gyroid-band"};
+    for (const std::string& v : vdb_isosimp::volumes::volumeNames()) kinds.push_back(v);
+    std::string kindList;
+    for (const std::string& k : kinds) kindList += (kindList.empty() ? "" : " | ") + k;
+    bool rotated = false;
+    app.add_option("kind", kind, kindList + "\n(box .. fog-box: hard surfaces of test_volumes.h, ct-int: integers, iso 100)")
         ->required()
-        ->check(CLI::IsMember({"sphere", "torus", "noise", "gyroid", "gyroid-band"}));
+        ->check(CLI::IsMember(kinds));
     app.add_option("-o,--output", output, "Output .vdb file")->required();
     app.add_option("-n,--size", size, "Volume size in voxels per axis")->default_val(size)->check(CLI::Range(8, 4096));
     app.add_option("--seed", seed, "Noise seed")->default_val(seed);
@@ -139,12 +117,16 @@ int main(int argc, char** argv)
     app.add_option("--period", period, "Gyroid period in voxels (gyroid, gyroid-band)")
         ->default_val(period)
         ->check(CLI::Range(4.0, 1e6));
+    app.add_flag("--rotated", rotated, "Hard surfaces and ct-int: a rotated, anisotropic transform (test_volumes.h)");
     CLI11_PARSE(app, argc, argv);
 
     openvdb::initialize();
     openvdb::GridBase::Ptr out;
     const double n = size;
-    if (kind == "sphere") {
+    const auto& named = vdb_isosimp::volumes::volumeNames();
+    if (std::find(named.begin(), named.end(), kind) != named.end()) {
+        out = vdb_isosimp::volumes::makeVolume(kind, size, rotated).grid;
+    } else if (kind == "sphere") {
         auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(float(0.4 * n * voxel),
                                                                           openvdb::Vec3f(float(0.5 * n * voxel)), float(voxel));
         out = g;
@@ -177,12 +159,7 @@ int main(int argc, char** argv)
                 for (int x = 0; x < size; ++x) {
                     double v;
                     if (kind == "noise") {
-                        // Fractal noise, faded to exactly 0 near the border so constant regions become tiles.
-                        v = 0;
-                        double amp = 0.5, f = 1.0 / 12.0;
-                        for (int o = 0; o < 4; ++o, amp *= 0.5, f *= 2) v += amp * valueNoise(x * f, y * f, z * f, seed + o);
-                        const double edge = std::min({x, y, z, size - 1 - x, size - 1 - y, size - 1 - z}) / 10.0;
-                        v = std::max(0.0, (v - 0.3) * std::min(1.0, edge));
+                        v = vdb_isosimp::volumes::fractalNoise(x, y, z, size, seed);
                     } else {
                         const double s = 2 * M_PI / period;
                         v = 0.5 + 0.5 * (std::sin(x * s) * std::cos(y * s) + std::sin(y * s) * std::cos(z * s) +
@@ -193,7 +170,7 @@ int main(int argc, char** argv)
         openvdb::tools::prune(g->tree());
         out = g;
     }
-    out->setName(kind);
+    if (out->getName().empty()) out->setName(kind);
     openvdb::io::File file(output);
     file.write({out});
     std::cout << "wrote " << output << " (" << kind << ", " << size << "^3";

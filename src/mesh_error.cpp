@@ -406,4 +406,10 @@ SymmetricDistance symmetricDistance(const Mesh& A, const Mesh& B, size_t samples
     return d;
 }
 
+SurfaceError surfaceError(const Mesh& full, const Mesh& simplified, size_t samples, uint64_t seed)
+{
+    const SymmetricDistance d = symmetricDistance(full, simplified, samples, seed);
+    return {100 * d.ab.rms / d.ab.diagonal, 100 * d.hausdorff / d.ab.diagonal};
+}
+
 } // namespace vdb_isosimp::eval

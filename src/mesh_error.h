@@ -99,4 +99,12 @@ DistanceStats sampleDistance(const Mesh& A, const TriangleBVH& bvhOfB, size_t sa
 // both directions take `samples` samples.
 SymmetricDistance symmetricDistance(const Mesh& A, const Mesh& B, size_t samples = 0, uint64_t seed = 1);
 
+// A simplified surface against its full-resolution original, in % of the original's bounding-box
+// diagonal: RMS of the original sampled onto the simplified one (the paper's metro setting) and the
+// symmetric Hausdorff distance.
+struct SurfaceError {
+    double rmsPct = 0, hausdorffPct = 0;
+};
+SurfaceError surfaceError(const Mesh& full, const Mesh& simplified, size_t samples = 0, uint64_t seed = 1);
+
 } // namespace vdb_isosimp::eval
