@@ -6,8 +6,10 @@
 //  - the transform: linear, finite, invertible;
 //  - the estimated peak memory of a run against a budget (--max-memory, default the machine's).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <openvdb/openvdb.h>
 
@@ -16,10 +18,30 @@
 
 namespace vdb_isosimp {
 
-// Walks the header and the grid descriptors of a .vdb file and checks that every grid's data lies
-// inside the file. Files written without grid offsets (streams) are left to OpenVDB.
+// Walks the header, the metadata and the grid descriptors of a .vdb file and checks that every
+// grid's data lies inside the file, and every grid's metadata and transform (which OpenVDB reads when
+// it lists the grids) inside its grid. Files written without grid offsets (streams) and layouts older
+// than 2013 are left to OpenVDB.
 // @throw InputError naming the file ("truncated or damaged OpenVDB file ...").
 void checkVdbFileStructure(const std::string& path);
+
+// What checkVdbGridData learned about a grid's tree.
+struct VdbGridLayout {
+    bool checked = false;                              // false: a layout left to OpenVDB
+    std::vector<std::array<int32_t, 3>> leafOrigins;   // in file order
+    std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
+};
+
+// Walks one float or double grid's stored tree before OpenVDB reads it: the topology node by node
+// (counts against the bytes that hold them, node origins, tile-value chunks), then every leaf's
+// record (value mask, compression code, chunk size, the blosc header's sizes and block offsets or
+// the zlib header) against the leaf's expected size, and the per-leaf sizes of the delayed-load
+// metadata against the records. OpenVDB trusts all of these: a wrong one makes it allocate what the
+// file says, read past a buffer in c-blosc, or loop over garbage. What only decompression can find
+// (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
+// @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
+// "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
+VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridName);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

@@ -11,6 +11,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <climits>
 #include <cstdio>
@@ -29,12 +30,61 @@ namespace vdb_isosimp {
 
 namespace {
 
-// OpenVDB's messages may span lines; the programs print one line per error.
+// OpenVDB's messages may span lines and start with their exception's class ("RuntimeError: "); the
+// programs print one line per error, in words.
 std::string oneLine(std::string s)
 {
     for (char& c : s)
         if (c == '\n' || c == '\r') c = ' ';
+    const size_t colon = s.find(": ");
+    if (colon != std::string::npos && colon > 5 && s.compare(colon - 5, 5, "Error") == 0 &&
+        s.find(' ') > colon)
+        s.erase(0, colon + 2);
     return s;
+}
+
+std::string coordText(const openvdb::Coord& c)
+{
+    std::ostringstream s;
+    s << "[" << c.x() << ", " << c.y() << ", " << c.z() << "]";
+    return s.str();
+}
+
+// OpenVDB's LeafBuffer::doLoad() puts a fresh voxel array into the union that held the buffer's file
+// position, then decompresses; when decompression throws, the out-of-core flag stays set over that
+// array. From then on any access loads again and the destructor detaches from the "file", both
+// reading the voxel array as the FileInfo it replaced: Tree::clear() crashes freeing garbage shared
+// pointers. No public call clears the flag alone, so the broken buffer is swapped out of its leaf
+// for an empty in-core one and kept, never destroyed, for the rest of the process (2 KB per damaged
+// leaf met; a run stops at the first). Reachable from a static, so leak checkers stay quiet.
+template <typename LeafT>
+void parkBrokenBuffer(LeafT& leaf)
+{
+    static std::mutex mutex;
+    static auto* parked = new std::vector<typename LeafT::Buffer*>;
+    auto* empty = new typename LeafT::Buffer(openvdb::PartialCreate(), typename LeafT::ValueType(0));
+    empty->swap(leaf.buffer());
+    std::lock_guard<std::mutex> lock(mutex);
+    parked->push_back(empty);
+}
+
+// Reads a leaf's voxels from the file (delayed loading) once; on failure the leaf is left safe to
+// destroy (parkBrokenBuffer) and the error names the grid and the leaf. Callers serialise the first
+// load of each leaf: a second thread waiting on OpenVDB's own lock would load the broken buffer.
+template <typename LeafT>
+void loadLeaf(LeafT& leaf, const std::string& gridName)
+{
+    const char* what = nullptr;
+    try {
+        leaf.buffer().data();
+        return;
+    } catch (const std::bad_alloc&) {
+        what = "out of memory reading its voxels";
+    } catch (const std::exception&) {
+        what = "compressed data is damaged";
+    }
+    parkBrokenBuffer(leaf);
+    throw InputError("grid '" + gridName + "', leaf " + coordText(leaf.origin()) + ": " + what);
 }
 
 template <typename GridT>
@@ -60,14 +110,46 @@ public:
 
     void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
     {
-        try {
-            sampleUnchecked(origin, out);
-        } catch (const openvdb::Exception& e) {
-            std::ostringstream s;
-            s << "cannot read the voxels of grid '" << mInfo.gridName << "' near [" << origin[0] << ", " << origin[1]
-              << ", " << origin[2] << "] (" << oneLine(e.what()) << ")";
-            throw InputError(s.str());
+        loadLeaves(origin);
+        sampleUnchecked(origin, out);
+    }
+
+    // The first read of a leaf's voxels happens here, one thread per leaf (a lock stripe by origin),
+    // for the up to 8 leaves the block's 9^3 samples touch: afterwards they are in memory and the
+    // accessor's reads load nothing. A leaf that failed before is reported again.
+    // The leaves above a slab's top blocks belong to the next slab, which frees them as it goes
+    // (releaseSeamLeaf, under mSeamMutex): those are looked up and loaded under the same lock.
+    void loadLeaves(const std::array<int32_t, 3>& origin) const
+    {
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + 8) != mSeams.end();
+        for (int d = 0; d < 8; ++d) {
+            const openvdb::Coord c(origin[0] + 8 * (d & 1), origin[1] + 8 * ((d >> 1) & 1), origin[2] + 8 * ((d >> 2) & 1));
+            std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
+            if (seamTop && (d >> 2)) seamLock.lock();
+            LeafT* leaf = mGrid->tree().probeLeaf(c);
+            if (!leaf || !leaf->buffer().isOutOfCore()) {
+                if (mDamaged.load(std::memory_order_acquire)) throwDamaged();
+                continue;
+            }
+            const openvdb::Coord o = leaf->origin();
+            std::lock_guard<std::mutex> lock(mLoadMutex[size_t(uint32_t(o.x() * 73856093 ^ o.y() * 19349663 ^ o.z() * 83492791) % kLoadStripes)]);
+            if (!leaf->buffer().isOutOfCore()) continue;
+            try {
+                loadLeaf(*leaf, mInfo.gridName);
+            } catch (const InputError& e) {
+                std::lock_guard<std::mutex> g(mDamageMutex);
+                if (!mDamaged.load()) mDamage = e.what();
+                mDamaged.store(true, std::memory_order_release);
+                throw;
+            }
         }
+    }
+
+    [[noreturn]] void throwDamaged() const
+    {
+        std::lock_guard<std::mutex> g(mDamageMutex);
+        throw InputError(mDamage);
     }
 
     void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
@@ -218,6 +300,7 @@ public:
             tbb::blocked_range<size_t>(0, leaves.size(), 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
                 for (size_t i = br.begin(); i != br.end(); ++i) {
+                    if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName);
                     const auto* v = leaves[i]->buffer().data();
                     const auto mm = std::minmax_element(v, v + LeafT::SIZE);
                     acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
@@ -235,6 +318,13 @@ public:
 private:
     typename GridT::Ptr mGrid;
     std::mutex mReleaseMutex;
+    // First loads of leaves (loadLeaves): a lock per stripe of leaf origins; the first damaged leaf's
+    // message, repeated to every later sample so no block reads the emptied leaf as data.
+    static constexpr size_t kLoadStripes = 64;
+    mutable std::array<std::mutex, kLoadStripes> mLoadMutex;
+    mutable std::atomic<bool> mDamaged{false};
+    mutable std::mutex mDamageMutex;
+    mutable std::string mDamage;
     std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
     // Seams: z of each slab's first leaf layer (set before extraction, read-only during it), and the
     // bottom planes of released seam leaves, by leaf origin.
@@ -361,6 +451,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         file.setCopyMaxBytes(0);  // read the file in place rather than through a private copy
         file.open(/*delayLoad=*/true);
         metas = file.readAllGridMetadata();
+    } catch (const std::bad_alloc&) {
+        throw InputError(path + ": not a readable OpenVDB file (out of memory reading its metadata)");
     } catch (const std::exception& e) {
         throw InputError(path + ": not a readable OpenVDB file (" + oneLine(e.what()) + ")");
     }
@@ -396,13 +488,22 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
+    // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
+    const VdbGridLayout layout = checkVdbGridData(path, meta->getName());
+
     openvdb::GridBase::Ptr grid;
     try {
         grid = file.readGrid(meta->getName());
+    } catch (const std::bad_alloc&) {
+        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (out of memory reading its topology)");
     } catch (const std::exception& e) {
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + oneLine(e.what()) + ")");
     }
     if (!grid) throw InputError(path + ": cannot read grid '" + meta->getName() + "'");
+    if (layout.checked && grid->baseTree().leafCount() != layout.leafOrigins.size())
+        throw InputError(path + ": truncated or damaged OpenVDB file (grid '" + meta->getName() + "': " +
+                         std::to_string(grid->baseTree().leafCount()) + " leaves read, " +
+                         std::to_string(layout.leafOrigins.size()) + " stored)");
     try {
         checkTransform(grid->transform());
     } catch (const InputError& e) {
