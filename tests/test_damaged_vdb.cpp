@@ -1,0 +1,314 @@
+// Damaged .vdb files: the program never crashes, hangs or prints a raw exception; every error is one
+// line naming the file, and nothing is left under the output name.
+//
+// Mutations: each sample of fuzz/vdb_samples.h (blosc, zip, none, half floats, several grids, level
+// sets and fog) is damaged deterministically at positions spread over the whole file (header,
+// metadata, topology, leaf data) in five ways a bad disk, an interrupted copy or a broken writer
+// leave: one byte, four bytes, eight 0xFF bytes, sixteen zero bytes, and a cut. Each damaged file is
+// run through the program under an address-space limit (a file that makes OpenVDB allocate what it
+// states fails instead of swapping the machine) and a time limit.
+// Located damage: the leaf a damaged chunk belongs to is found independently of the reader, as the
+// bytes where two files differ that differ only in that leaf's voxels; the message must name it.
+#include "errors.h"
+#include "vdb_isosimp.h"
+
+#include "fuzz/vdb_samples.h"
+#include "test_files.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <csignal>
+#include <fcntl.h>
+#include <fstream>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+namespace {
+
+using vdb_isosimp::testing::exists;
+using vdb_isosimp::testing::slurp;
+
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kAsan = true;  // ASan reserves terabytes of address space: no RLIMIT_AS then
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kAsan = true;
+#else
+constexpr bool kAsan = false;
+#endif
+#else
+constexpr bool kAsan = false;
+#endif
+
+constexpr rlim_t kAddressSpace = rlim_t(3) << 30;  // far above what these small files need
+constexpr int kTimeoutSeconds = 60;
+
+std::string scratch(const std::string& name)
+{
+    const std::string d = ::testing::TempDir() + "/damaged_" + name;
+    std::system(("rm -rf '" + d + "' && mkdir -p '" + d + "'").c_str());
+    return d;
+}
+
+struct Outcome {
+    int code = 0;         // exit code; -signal for a signal death; -1000 for a hang
+    std::string err;      // stderr
+};
+
+// Runs the program on dir/in.vdb with output dir/out.ply, under the limits above.
+Outcome runLimited(const std::string& dir, const std::vector<std::string>& extra = {})
+{
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        if (!kAsan) {
+            const rlimit as{kAddressSpace, kAddressSpace};
+            ::setrlimit(RLIMIT_AS, &as);
+        }
+        const int err = ::open((dir + "/stderr.log").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        const int null = ::open("/dev/null", O_WRONLY);
+        if (err < 0 || null < 0 || ::chdir(dir.c_str()) != 0) ::_exit(120);
+        ::dup2(err, 2);
+        ::dup2(null, 1);
+        std::vector<std::string> args = {VDB_ISOSIMP_EXE, "in.vdb", "-q", "-o", "out.ply"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        std::vector<char*> a;
+        for (auto& s : args) a.push_back(&s[0]);
+        a.push_back(nullptr);
+        ::execv(a[0], a.data());
+        ::_exit(121);
+    }
+    Outcome o;
+    int status = 0;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kTimeoutSeconds);
+    for (;;) {
+        const pid_t r = ::waitpid(pid, &status, WNOHANG);
+        if (r == pid) break;
+        if (std::chrono::steady_clock::now() > deadline) {
+            ::kill(pid, SIGKILL);
+            ::waitpid(pid, &status, 0);
+            o.code = -1000;
+            return o;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+    o.err = slurp(dir + "/stderr.log");
+    return o;
+}
+
+// What a failed run must look like: one line, "vdb_isosimp: in.vdb: ...", in our words.
+std::string badMessage(const std::string& err)
+{
+    if (std::count(err.begin(), err.end(), '\n') != 1 || err.back() != '\n') return "not one line";
+    if (err.rfind("vdb_isosimp: in.vdb: ", 0) != 0) return "does not name the file";
+    for (const char* raw : {"std::", "bad_alloc", "terminate", "Error: ", "Exception", "what()", "Sanitizer",
+                            "runtime error", "Aborted"})
+        if (err.find(raw) != std::string::npos) return std::string("raw text '") + raw + "'";
+    return "";
+}
+
+// Deterministic damage number `i` of `n` to `bytes`: the position walks the whole file (one case per
+// n-th of it, jittered), the kind cycles through the five.
+std::string damage(const std::string& bytes, int i, int n)
+{
+    uint64_t h = 0x9E3779B97F4A7C15ull * uint64_t(i + 1);
+    h ^= h >> 29;
+    const size_t size = bytes.size();
+    const size_t span = std::max<size_t>(1, size / size_t(n));
+    const size_t pos = std::min(size - 1, size_t(i) * size / size_t(n) + size_t(h % span));
+    std::string d = bytes;
+    switch (i % 5) {
+    case 0: d[pos] = char(uint8_t(d[pos]) ^ uint8_t(1 + (h >> 8) % 255)); break;
+    case 1:
+        for (size_t k = 0; k < 4 && pos + k < size; ++k) d[pos + k] = char(h >> (8 * k + 16));
+        break;
+    case 2:
+        for (size_t k = 0; k < 8 && pos + k < size; ++k) d[pos + k] = char(0xFF);
+        break;
+    case 3:
+        for (size_t k = 0; k < 16 && pos + k < size; ++k) d[pos + k] = 0;
+        break;
+    default: d.resize(pos); break;
+    }
+    return d;
+}
+
+void writeBytes(const std::string& path, const std::string& bytes)
+{
+    std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+constexpr int kCasesPerSample = 36;  // 9 samples: 324 damaged files
+
+class Mutations : public ::testing::TestWithParam<vdb_samples::Sample> {};
+
+TEST_P(Mutations, NeverCrashHangOrRawMessage)
+{
+    const vdb_samples::Sample& sample = GetParam();
+    const std::string d = scratch(sample.name);
+    sample.write(d + "/whole.vdb");
+    const std::string whole = slurp(d + "/whole.vdb");
+    ASSERT_GT(whole.size(), 200u);
+    // The undamaged file meshes.
+    writeBytes(d + "/in.vdb", whole);
+    const Outcome clean = runLimited(d);
+    ASSERT_EQ(clean.code, 0) << clean.err;
+    std::remove((d + "/out.ply").c_str());
+
+    int errors = 0, meshes = 0;
+    for (int i = 0; i < kCasesPerSample; ++i) {
+        writeBytes(d + "/in.vdb", damage(whole, i, kCasesPerSample));
+        const Outcome o = runLimited(d);
+        const std::string what = sample.name + " case " + std::to_string(i) + " (kind " + std::to_string(i % 5) + ")";
+        ASSERT_NE(o.code, -1000) << what << ": hang (over " << kTimeoutSeconds << " s)";
+        ASSERT_GE(o.code, 0) << what << ": killed by signal " << -o.code << "\n" << o.err;
+        ASSERT_TRUE(o.code == 0 || o.code == 1 || o.code == 3) << what << ": exit " << o.code << "\n" << o.err;
+        if (o.code == 0) {
+            EXPECT_EQ(o.err, "") << what;
+            EXPECT_TRUE(exists(d + "/out.ply")) << what;
+            ++meshes;
+        } else {
+            EXPECT_EQ(badMessage(o.err), "") << what << ": " << o.err;
+            EXPECT_FALSE(exists(d + "/out.ply")) << what << ": a failed run left its output";
+            errors += o.code == 1;
+        }
+        std::remove((d + "/out.ply").c_str());
+        // Only the input, the log and the undamaged copy: no temporary left behind.
+        std::string left;
+        FILE* p = popen(("ls -A '" + d + "'").c_str(), "r");
+        char buf[256];
+        while (p && fgets(buf, sizeof buf, p)) left += buf;
+        if (p) pclose(p);
+        EXPECT_EQ(left, "in.vdb\nstderr.log\nwhole.vdb\n") << what;
+    }
+    // Most damage is found: a test that damaged nothing the reader reads would pass vacuously.
+    EXPECT_GE(errors, kCasesPerSample / 3) << sample.name << ": " << errors << " errors, " << meshes << " meshes";
+    std::printf("%s: %d cases, %d refused, %d meshed\n", sample.name.c_str(), kCasesPerSample, errors, meshes);
+}
+
+INSTANTIATE_TEST_SUITE_P(DamagedVdb, Mutations, ::testing::ValuesIn(vdb_samples::samples()),
+                         [](const ::testing::TestParamInfo<vdb_samples::Sample>& i) { return i.param.name; });
+
+// ---------------------------------------------------------------------------------------------
+// Located damage
+
+// A fog grid with a dense 24^3 block (27 leaves); `marked` changes the voxels of leaf [8, 8, 8] only.
+openvdb::FloatGrid::Ptr blockGrid(bool marked, openvdb::GridClass cls)
+{
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->setName("density");
+    g->setGridClass(cls);
+    auto acc = g->getAccessor();
+    for (int z = 0; z < 24; ++z)
+        for (int y = 0; y < 24; ++y)
+            for (int x = 0; x < 24; ++x) {
+                const bool inLeaf = x >= 8 && x < 16 && y >= 8 && y < 16 && z >= 8 && z < 16;
+                float v = float(((x * 7 + y * 13 + z * 29) % 31)) / 31.0f;
+                if (marked && inLeaf) v = 1.0f - v * 0.5f;
+                acc.setValueOn(openvdb::Coord(x, y, z), v);
+            }
+    return g;
+}
+
+// One past the last byte where two files differ, counted from their ends.
+size_t differingEnd(const std::string& a, const std::string& b)
+{
+    size_t ea = a.size(), eb = b.size();
+    while (ea > 0 && eb > 0 && a[ea - 1] == b[eb - 1]) --ea, --eb;
+    return ea;
+}
+
+struct Located {
+    std::string name;
+    uint32_t compression;
+    openvdb::GridClass cls;
+    bool half;
+};
+
+class LocatedDamage : public ::testing::TestWithParam<Located> {};
+
+TEST_P(LocatedDamage, NamesTheLeafInProgramLibraryAndPython)
+{
+    const Located& c = GetParam();
+    const std::string d = scratch("located_" + c.name);
+    auto a = blockGrid(false, c.cls), b = blockGrid(true, c.cls);
+    a->setSaveFloatAsHalf(c.half);
+    b->setSaveFloatAsHalf(c.half);
+    vdb_samples::write(d + "/a.vdb", {a}, c.compression);
+    vdb_samples::write(d + "/b.vdb", {b}, c.compression);
+    const std::string fa = slurp(d + "/a.vdb"), fb = slurp(d + "/b.vdb");
+    // Everything after the marked leaf's record is the same in both files (the header differs too:
+    // a fresh UUID, and the offsets when the chunk's size changed), so the last differing byte lies
+    // in that record's values: scramble the bytes before it.
+    const size_t end = differingEnd(fa, fb);
+    ASSERT_GT(end, 100u);
+    std::string bad = fa;
+    const bool compressed = c.compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP);
+    for (size_t k = end - 24; k < end; ++k) bad[k] = compressed ? char(0xA5 ^ (k * 37)) : char(0xFF);
+    writeBytes(d + "/in.vdb", bad);
+
+    const Outcome o = runLimited(d);
+    ASSERT_EQ(o.code, 1) << o.err;
+    EXPECT_EQ(badMessage(o.err), "") << o.err;
+    const std::string expected = compressed ? "vdb_isosimp: in.vdb: grid 'density', leaf [8, 8, 8]: compressed data is damaged"
+                                            : "vdb_isosimp: in.vdb: voxel [";
+    EXPECT_EQ(o.err.rfind(expected, 0), 0u) << o.err;
+    if (!compressed) {  // raw values: the scrambled ones are read as values, and some are NaN
+        EXPECT_NE(o.err.find("nan (NaN/Inf values are not allowed)"), std::string::npos) << o.err;
+        const size_t at = o.err.find("voxel [") + 7;
+        int x = -1, y = -1, z = -1;
+        ASSERT_EQ(std::sscanf(o.err.c_str() + at, "%d, %d, %d", &x, &y, &z), 3) << o.err;
+        EXPECT_TRUE(x >= 8 && x < 16 && y >= 8 && y < 16 && z >= 8 && z < 16) << o.err;
+    }
+    EXPECT_FALSE(exists(d + "/out.ply"));
+
+    // The library throws InputError with the same text.
+    vdb_isosimp::Options opt;
+    std::string libraryMessage;
+    try {
+        vdb_isosimp::simplifyFile(d + "/in.vdb", opt);
+    } catch (const vdb_isosimp::InputError& e) {
+        libraryMessage = e.what();
+    }
+    EXPECT_EQ("vdb_isosimp: " + libraryMessage + "\n", std::string(o.err).replace(13, 6, d + "/in.vdb"))
+        << "library: " << libraryMessage;
+
+    // Python raises InputError with the same text (when the module is built).
+    const std::string module = VDB_ISOSIMP_PYTHON_DIR;
+    if (!kAsan && !module.empty() && std::system(("ls '" + module + "'/vdb_isosimp*.so > /dev/null 2>&1").c_str()) == 0) {
+        const std::string script = d + "/check.py";
+        std::ofstream(script) << "import vdb_isosimp, sys\n"
+                                 "try:\n"
+                                 "    vdb_isosimp.simplify(sys.argv[1])\n"
+                                 "    print('no error')\n"
+                                 "except vdb_isosimp.InputError as e:\n"
+                                 "    print('InputError: ' + str(e))\n";
+        const std::string cmd = "cd '" + d + "' && PYTHONPATH='" + module + "' /usr/bin/python3 check.py '" + d +
+                                "/in.vdb' > py.log 2>&1";
+        EXPECT_EQ(std::system(cmd.c_str()), 0) << slurp(d + "/py.log");
+        EXPECT_EQ(slurp(d + "/py.log"), "InputError: " + libraryMessage + "\n");
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(DamagedVdb, LocatedDamage,
+                         ::testing::Values(Located{"blosc", openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK,
+                                                   openvdb::GRID_FOG_VOLUME, false},
+                                           Located{"blosc_half", openvdb::io::COMPRESS_BLOSC, openvdb::GRID_FOG_VOLUME, true},
+                                           Located{"zip", openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK,
+                                                   openvdb::GRID_UNKNOWN, false},
+                                           Located{"none", openvdb::io::COMPRESS_NONE, openvdb::GRID_FOG_VOLUME, false}),
+                         [](const ::testing::TestParamInfo<Located>& i) { return i.param.name; });
+
+// Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.
+TEST(DamagedVdb, WriteCorpus)
+{
+    const char* dir = std::getenv("VDB_ISOSIMP_CORPUS_DIR");
+    if (!dir) GTEST_SKIP() << "set VDB_ISOSIMP_CORPUS_DIR to write the fuzz corpus";
+    for (const auto& s : vdb_samples::samples()) s.write(std::string(dir) + "/" + s.name + ".vdb");
+}
+
+} // namespace
