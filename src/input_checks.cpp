@@ -266,6 +266,9 @@ struct DelayedLoadSizes {
 };
 
 // One of the two arrays of "file_delayed_load": uint32 stored size (0: raw), then blosc or raw bytes.
+// OpenVDB pads arrays of 48 to 127 bytes to 128 before blosc compresses them.
+constexpr uint64_t kBloscPadBytes = 128;
+
 std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, size_t elem, std::vector<char>* out)
 {
     uint32_t bytes = 0;
@@ -281,12 +284,17 @@ std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, si
     }
     if (bytes > end - std::min(end, in.pos())) return "array runs past the metadata";
     const uint64_t start = in.pos();
-    const std::string why = checkBloscChunk(in, bytes, want);
+    std::string why = checkBloscChunk(in, bytes, want);
+    const uint64_t packedBytes = want < kBloscPadBytes && !why.empty() && in.seek(start) &&
+                                         checkBloscChunk(in, bytes, kBloscPadBytes).empty()
+                                     ? kBloscPadBytes
+                                     : want;
+    if (packedBytes != want) why.clear();
     if (!why.empty()) return why;
     if (out) {
         std::vector<char> packed(bytes);
         if (!in.seek(start) || !in.bytes(packed.data(), bytes)) return "ends early";
-        out->assign(size_t(want) + 16, 0);  // c-blosc's room for its overhead
+        out->assign(size_t(packedBytes) + 16, 0);  // c-blosc's room for its overhead
         try {
             openvdb::compression::bloscDecompress(out->data(), size_t(want), out->size(), packed.data());
         } catch (const std::exception&) {
@@ -300,7 +308,7 @@ std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, si
 // A metadata map (file or grid): uint32 count, then per item name, type name, uint32 size and the
 // value. Every size must fit before `end`, fixed-size types must state their size, and the
 // delayed-load table (read by OpenVDB with no bound of its own) must be consistent.
-std::string walkMetaMap(BoundedReader& in, uint64_t end, DelayedLoadSizes* delayed)
+std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, DelayedLoadSizes* delayed)
 {
     uint32_t count = 0;
     if (!in.value(count) || count > in.left() / 12) return "metadata count ends early or is invalid";
@@ -317,6 +325,7 @@ std::string walkMetaMap(BoundedReader& in, uint64_t end, DelayedLoadSizes* delay
             const uint64_t valueEnd = valueStart + n;
             uint32_t leaves = 0;
             if (!in.value(leaves)) return "delayed-load metadata ends early";
+            if (leaves > maxLeaves) return "delayed-load metadata lists more leaves than the grid's data holds";
             std::vector<char> codes, sizes;
             std::string why = readDelayedArray(in, valueEnd, leaves, 1, delayed ? &codes : nullptr);
             uint32_t sizesBytes = 0;
@@ -373,7 +382,7 @@ FileEntries readFileEntries(const std::string& path)
         damaged(path, "header ends early");
     if (!hasOffsets) return out;  // written as a stream: no offsets to check
 
-    const std::string fileMeta = walkMetaMap(in, size, nullptr);
+    const std::string fileMeta = walkMetaMap(in, size, 0, nullptr);
     if (!fileMeta.empty()) damaged(path, "file " + fileMeta);
 
     int32_t grids = 0;
@@ -412,7 +421,9 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     in.setLimit(headerEnd);
     if (!in.seek(e.gridPos) || !in.value(compression)) damaged(path, "grid '" + e.name + "' ends early");
     if (compression & ~uint32_t(0x7)) damaged(path, "grid '" + e.name + "' has unknown compression flags");
-    const std::string meta = walkMetaMap(in, headerEnd, delayed);
+    // A leaf record takes at least its value mask and code byte.
+    const uint64_t maxLeaves = e.blockPos ? (e.endPos - e.blockPos) / 65 : 0;
+    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed);
     if (!meta.empty()) damaged(path, "grid '" + e.name + "': " + meta);
     std::string mapType;
     if (!in.string(&mapType, 64)) damaged(path, "grid '" + e.name + "': transform ends early");
