@@ -138,7 +138,8 @@ std::string printable(std::string s)
 // One grid as the file's descriptor states it.
 struct GridEntry {
     std::string uniqueName;  // as stored: the name plus a suffix when names repeat
-    std::string name;        // printable, without the suffix
+    std::string plain;       // without the suffix
+    std::string name;        // plain, printable
     std::string type;        // tree type, "_HalfFloat" appended when stored as half floats
     std::string parent;      // instance parent (unique name); empty for a grid with its own tree
     uint64_t gridPos = 0, blockPos = 0, endPos = 0;
@@ -390,10 +391,11 @@ FileEntries readFileEntries(const std::string& path)
     for (int32_t g = 0; g < grids; ++g) {
         GridEntry e;
         int64_t gridPos = 0, blockPos = 0, endPos = 0;
-        if (!in.string(&e.uniqueName) || !in.string(&e.type) || !in.string(&e.parent) || !in.value(gridPos) ||
+        if (!in.string(&e.uniqueName, 1 << 16) || !in.string(&e.type) || !in.string(&e.parent, 1 << 16) || !in.value(gridPos) ||
             !in.value(blockPos) || !in.value(endPos))
             damaged(path, "descriptor of grid " + std::to_string(g + 1) + " of " + std::to_string(grids) + " ends early");
-        e.name = printable(e.uniqueName);
+        e.plain = e.uniqueName.substr(0, e.uniqueName.find('\x1e'));
+        e.name = printable(e.plain);
         const uint64_t here = in.pos();
         const bool ordered = gridPos >= 0 && uint64_t(gridPos) >= here && endPos >= gridPos &&
                              (blockPos == 0 || (blockPos >= gridPos && blockPos <= endPos));
@@ -551,7 +553,7 @@ VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridN
         if (g.uniqueName == gridName) { e = &g; break; }
     if (!e)
         for (const GridEntry& g : f.grids)
-            if (g.name == gridName) { e = &g; break; }
+            if (g.plain == gridName) { e = &g; break; }
     if (!e) return layout;
     const std::string name = e->name;
     if (!e->parent.empty()) {  // an instance reads its parent's tree
