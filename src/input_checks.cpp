@@ -212,8 +212,11 @@ struct ValuesRecord {
     bool hasChunk = false;
 };
 
+// `decompress`: also decompress the chunk (tile values of internal nodes). OpenVDB decompresses those
+// while it builds the topology, and a throw there leaks the root's child it was filling (the
+// root inserts a child only once it is read), besides leaving a partial tree.
 std::string walkValues(BoundedReader& in, uint32_t compression, bool half, uint64_t valueSize, uint64_t nodeValues,
-                       uint64_t active, ValuesRecord& rec)
+                       uint64_t active, ValuesRecord& rec, bool decompress = false)
 {
     const bool maskCompressed = compression & openvdb::io::COMPRESS_ACTIVE_MASK;
     if (!in.value(rec.code)) return "ends early";
@@ -253,6 +256,19 @@ std::string walkValues(BoundedReader& in, uint32_t compression, bool half, uint6
         if (n < 8 || !in.bytes(h, 2) || !zlibHeaderFits(h[0], h[1])) return "zip chunk without a zlib header";
         // zlib never grows data by more than 5 bytes per 16 KB block plus its 6-byte frame.
         if (uint64_t(n) > expected + expected / 1000 + 64) return "zip chunk larger than its data could compress to";
+    }
+    if (decompress) {
+        std::string chunk(size_t(8 + n), '\0');
+        std::memcpy(&chunk[0], &n, 8);
+        if (!in.seek(start) || !in.bytes(&chunk[8], uint64_t(n))) return "ends early";
+        std::istringstream is(chunk);
+        std::vector<char> values(size_t(expected) + 1);
+        try {
+            if (compression & openvdb::io::COMPRESS_BLOSC) openvdb::io::bloscFromStream(is, values.data(), size_t(expected));
+            else openvdb::io::unzipFromStream(is, values.data(), size_t(expected));
+        } catch (const std::exception&) {
+            return "compressed data is damaged";
+        }
     }
     return in.seek(start + uint64_t(n)) ? "" : "ends early";
 }
@@ -487,7 +503,7 @@ struct TopologyWalk {
         std::vector<uint64_t> childMask(values / 64), valueMask(values / 64);
         if (!in.bytes(childMask.data(), values / 8) || !in.bytes(valueMask.data(), values / 8)) fail("ends early");
         ValuesRecord rec;
-        const std::string why = walkValues(in, compression, half, valueSize, values, popcount(valueMask), rec);
+        const std::string why = walkValues(in, compression, half, valueSize, values, popcount(valueMask), rec, true);
         if (!why.empty()) fail("node " + coordText(origin) + ": tile values: " + why);
         const int childTotal = log2 == kLog2Upper ? kLog2Lower + 3 : 3;
         const int32_t dim = int32_t(1) << log2;
