@@ -101,7 +101,7 @@ int main(int argc, char** argv)
     size_t samples = 0;
     app.add_option("-n,--size", size, "Size of the generated volumes, in voxels")->default_val(size);
     app.add_option("--volumes", names, "Generated volumes (test_volumes.h); 'none' for files only");
-    app.add_option("--file", files, "Also these .vdb files (default grid and iso-value)");
+    app.add_option("--file", files, "Also these .vdb files: PATH (default grid and iso-value) or PATH:ISO");
     app.add_option("-r,--ratios", ratios, "Decimation rates")->default_val(ratios);
     app.add_option("-b,--batches", batches, "Batch sizes B")->default_val(batches);
     app.add_option("--rotated", rotated, "Also each generated volume under a rotated, anisotropic transform")->default_val(rotated);
@@ -124,7 +124,12 @@ int main(int argc, char** argv)
                 inputs.push_back({v.grid->getName(), v.grid, v.iso});
             }
         }
-        for (const std::string& f : files) {
+        for (std::string f : files) {
+            std::optional<double> iso;
+            if (const size_t colon = f.rfind(':'); colon != std::string::npos) {
+                iso = std::stod(f.substr(colon + 1));
+                f.resize(colon);
+            }
             openvdb::io::File file(f);
             file.open(false);
             openvdb::GridBase::Ptr g;
@@ -133,7 +138,7 @@ int main(int argc, char** argv)
                 if (c->isType<openvdb::FloatGrid>() || c->isType<openvdb::DoubleGrid>()) g = c;
             }
             if (!g) throw std::runtime_error(f + ": no float or double grid");
-            inputs.push_back({f.substr(f.find_last_of('/') + 1), g, std::nullopt});
+            inputs.push_back({f.substr(f.find_last_of('/') + 1) + (iso ? " iso " + std::to_string(*iso).substr(0, 5) : ""), g, iso});
         }
         std::printf("| volume | full faces | R | B | ours faces | ours RMS | ours Hausdorff | OpenMesh faces | RMS | Hausdorff "
                     "| meshopt faces | RMS | Hausdorff | CGAL faces | RMS | Hausdorff | zero-area | closed |\n");

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <iterator>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -24,6 +25,14 @@ double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] *
 constexpr double kMinShape = 1e-5;
 // Below this, an existing face counts as degenerate (zero area, up to rounding) and is cleaned up.
 constexpr double kDegenerateShape = 1e-10;
+// Each face also anchors its corners: a point quadric of this fraction of its plane weight, so moving
+// a vertex costs a little for the distance from where its merged vertices were. Among collapses that
+// cost nothing on the planes (flat regions, straight edges, coincident twins where voxels sit at the
+// iso-value) the shortest then go first and survivors settle at the centroid of what they absorbed,
+// instead of exact ties broken by vertex index sweeping flat regions into fans (on exactly planar
+// data, a rotated box, that cost 6x the RMS error at R = 0.05). Far below the plane terms: a vertex
+// moved across a face keeps 1e-8 of the cost of moving it off the face's plane by the same distance.
+constexpr double kAnchorWeight = 1e-8;
 
 } // namespace
 
@@ -38,7 +47,7 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         mGeom.emplace_back();
         mMeta.emplace_back();
     }
-    mGeom[id] = {p, PackedQuadric{}};
+    mGeom[id] = {p, Quadric{}};
     VertexMeta& v = mMeta[id];
     ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
     ++v.ring;
@@ -121,38 +130,55 @@ void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
 }
 
 // The quadric of edge ab written around a's position (both ends' quadrics summed there).
-static Quadric edgeQuadric(const V3& pa, const PackedQuadric& qa, const V3& pb, const PackedQuadric& qb)
+static Quadric edgeQuadric(const V3& pa, const Quadric& qa, const V3& pb, const Quadric& qb)
 {
-    Quadric q = qa.unpack();
-    q += qb.unpack().shifted(sub(pa, pb));
+    Quadric q = qa;
+    q += qb.shifted(sub(pa, pb));
     return q;
 }
 
-std::array<double, 3> Decimator::placement(uint32_t a, uint32_t b, double* cost) const
+size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements]) const
 {
     const VertexGeom& va = mGeom[a];
     const VertexGeom& vb = mGeom[b];
     const Quadric q = edgeQuadric(va.p, va.q, vb.p, vb.q);
-    V3 y;  // relative to a
-    if (!q.optimum(y)) {
-        // Ill-conditioned (flat or straight regions): best of the ends and the midpoint.
-        const V3 d = sub(vb.p, va.p);
-        const V3 options[3] = {{0, 0, 0}, d, {d[0] / 2, d[1] / 2, d[2] / 2}};
-        double best = q.error(options[0]);
-        y = options[0];
-        for (int i = 1; i < 3; ++i) {
-            const double e = q.error(options[i]);
-            if (e < best) { best = e; y = options[i]; }
-        }
+    // Positions relative to a: the quadric's optimum where it is well conditioned, the best point of
+    // segment ab (where the optimum is not unique, along flat and straight regions, it picks the
+    // point the edge itself prefers), the ends and the midpoint.
+    const V3 d = sub(vb.p, va.p);
+    size_t n = 0;
+    V3 y;
+    if (q.optimum(y)) out[n++] = {y, 0};
+    const double dAd = q.q[0] * d[0] * d[0] + q.q[4] * d[1] * d[1] + q.q[7] * d[2] * d[2] +
+                       2 * (q.q[1] * d[0] * d[1] + q.q[2] * d[0] * d[2] + q.q[5] * d[1] * d[2]);
+    const double bd = q.q[3] * d[0] + q.q[6] * d[1] + q.q[8] * d[2];
+    if (dAd > 0) {
+        const double t = -bd / dAd;
+        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0};
     }
-    if (cost) *cost = std::max(0.0, q.error(y));
-    return {va.p[0] + y[0], va.p[1] + y[1], va.p[2] + y[2]};
+    out[n++] = {{0, 0, 0}, 0};
+    out[n++] = {d, 0};
+    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0};
+    for (size_t i = 0; i < n; ++i) {
+        out[i].cost = std::max(0.0, q.error(out[i].p));
+        out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
+    }
+    // Cheapest first; ties keep the order above.
+    std::stable_sort(out, out + n, [](const Placement& x, const Placement& y) { return x.cost < y.cost; });
+    return n;
 }
 
 void Decimator::push(uint32_t a, uint32_t b)
 {
-    double cost;
-    placement(a, b, &cost);
+    // The cheapest placement, valid or not: a lower bound on what the collapse will cost (collapse()
+    // checks validity and sends the pair back when a valid placement costs more).
+    Placement p[kPlacements];
+    placements(a, b, p);
+    pushAt(a, b, p[0].cost);
+}
+
+void Decimator::pushAt(uint32_t a, uint32_t b, double cost)
+{
     const float f = float(cost);
     uint32_t bits;
     std::memcpy(&bits, &f, sizeof bits);
@@ -193,6 +219,25 @@ void Decimator::finalize(uint32_t v)
         if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
 }
 
+bool Decimator::collapseCheapestEdge(uint32_t f)
+{
+    const auto v = mFaces[f].v;
+    double best = std::numeric_limits<double>::infinity();
+    int which = -1;
+    for (int k = 0; k < 3; ++k) {
+        const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
+        double cost;
+        if (!mMeta[a].final || !mMeta[b].final || collapse(a, b, -1.0f, &cost) != Outcome::Costlier) continue;
+        if (cost < best) {
+            best = cost;
+            which = k;
+        }
+    }
+    if (which < 0) return false;
+    const uint32_t a = std::min(v[which], v[(which + 1) % 3]), b = std::max(v[which], v[(which + 1) % 3]);
+    return collapse(a, b, std::numeric_limits<float>::infinity(), nullptr) == Outcome::Collapsed;
+}
+
 void Decimator::addBlock(const BlockMesh& block)
 {
     std::vector<uint32_t> ids(block.keys.size());
@@ -208,7 +253,7 @@ void Decimator::addBlock(const BlockMesh& block)
     for (const auto& t : block.triangles) {
         const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
         newFace(v);
-        // Area-weighted plane quadric of the face, added to its three corners.
+        // Area-weighted plane quadric of the face, and its anchor, added to its three corners.
         const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
         const double len = std::sqrt(dot(n, n));
         if (len > 0) {
@@ -216,9 +261,8 @@ void Decimator::addBlock(const BlockMesh& block)
             const double d = -dot(u, mGeom[v[0]].p);
             for (uint32_t x : v) {
                 // The plane around each corner (it passes through all three, up to rounding).
-                Quadric q = mGeom[x].q.unpack();
-                q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
-                mGeom[x].q.pack(q);
+                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
+                mGeom[x].q.addPoint(kAnchorWeight * 0.5 * len);
             }
         }
     }
@@ -254,7 +298,7 @@ void Decimator::absorb(Decimator& other)
             remap[id] = it->second;
             VertexGeom& mine = mGeom[it->second];
             const VertexGeom& theirs = other.mGeom[id];
-            mine.q.pack(edgeQuadric(mine.p, mine.q, theirs.p, theirs.q));
+            mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
         } else {
             remap[id] = newVertex(other.mGeom[id].p);
             mGeom[remap[id]].q = other.mGeom[id].q;
@@ -353,7 +397,7 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
     return true;
 }
 
-bool Decimator::collapse(uint32_t a, uint32_t b)
+Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
 {
     // The two faces on edge ab and their opposite corners; the valence of a on the way.
     uint32_t shared[2], opposite[2];
@@ -362,11 +406,11 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
         const auto& fv = mFaces[c / 3].v;
         if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
-        if (ns == 2) return false;  // non-manifold edge
+        if (ns == 2) return Outcome::Refused;  // non-manifold edge
         shared[ns] = c / 3;
         opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
     }
-    if (ns != 2 || opposite[0] == opposite[1]) return false;
+    if (ns != 2 || opposite[0] == opposite[1]) return Outcome::Refused;
     // Link condition: the only common neighbours of a and b are the two opposite corners. The rings
     // are walked once with stamps: mScratchA gets the union of both rings (what needs requeueing).
     const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
@@ -391,7 +435,7 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
                 ring.push_back(x);
             }
         }
-    if (common != 2) return false;
+    if (common != 2) return Outcome::Refused;
     // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
     auto hasFaceWith = [&](uint32_t v) {
         for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
@@ -402,15 +446,18 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
         }
         return false;
     };
-    if (hasFaceWith(a) && hasFaceWith(b)) return false;
-    // The optimum first; when it would fold or degenerate a face, the ends and the midpoint.
-    const V3& pa = mGeom[a].p;
-    const V3& pb = mGeom[b].p;
-    const V3 places[4] = {placement(a, b, nullptr), pa, pb, {(pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2, (pa[2] + pb[2]) / 2}};
-    int place = 0;
-    while (place < 4 && !(facesStayValid(a, b, places[place]) && facesStayValid(b, a, places[place]))) ++place;
-    if (place == 4) return false;
-    const V3 target = places[place];
+    if (hasFaceWith(a) && hasFaceWith(b)) return Outcome::Refused;
+    // The cheapest placement that keeps every face valid. Its cost, not the bound the pair was queued
+    // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
+    // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
+    Placement places[kPlacements];
+    const size_t count = placements(a, b, places);
+    size_t place = 0;
+    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
+    if (place == count) return Outcome::Refused;
+    if (cost) *cost = places[place].cost;
+    if (float(places[place].cost) > maxCost) return Outcome::Costlier;
+    const V3 target = places[place].p;
 
     // Keep the end with more faces (a shorter list to relink); the other one dies.
     const uint32_t keep = valenceA >= valenceB ? a : b;
@@ -431,7 +478,7 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     }
     VertexGeom& gk = mGeom[keep];
     const VertexGeom& gg = mGeom[gone];
-    gk.q.pack(edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p)));
+    gk.q = edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p));
     gk.p = target;
     ++vk.version;
     ++vk.ring;
@@ -442,7 +489,7 @@ bool Decimator::collapse(uint32_t a, uint32_t b)
     const uint32_t brought = gone == a ? inA : inB;
     for (uint32_t n : ring)
         if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
-    return true;
+    return Outcome::Collapsed;
 }
 
 size_t Decimator::decimateTo(size_t targetFaces)
@@ -472,8 +519,12 @@ size_t Decimator::decimateTo(size_t targetFaces)
             continue;
         }
         ++mAttempts;
-        if (collapse(a, b)) ++collapses;
-        else mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring});
+        double cost;
+        switch (collapse(a, b, c.cost(), &cost)) {
+        case Outcome::Collapsed: ++collapses; break;
+        case Outcome::Refused: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
+        case Outcome::Costlier: pushAt(a, b, cost); break;
+        }
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
     if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
@@ -493,7 +544,7 @@ bool Decimator::degenerate(uint32_t f) const
     auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
     const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
     const V3 m = cross(sub(q1, q0), sub(q2, q0));
-    return dot(m, m) == 0.0;
+    return 0.25 * dot(m, m) <= mZeroArea * mZeroArea;
 }
 
 bool Decimator::dropFlatComponent(uint32_t seed)
@@ -524,6 +575,17 @@ size_t Decimator::removeDegenerateFaces()
     // all slivers, inside out.)
     const double savedCos = mMinNormalCos;
     mMinNormalCos = 0.0;
+    // Zero area also means tiny next to the whole surface: 1e-12 of the squared bounding-box diagonal
+    // (vertices a hair apart around one voxel corner make such faces with a fair shape).
+    V3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (uint32_t v = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive)
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], mGeom[v].p[k]);
+                hi[k] = std::max(hi[k], mGeom[v].p[k]);
+            }
+    const V3 diagonal = sub(hi, lo);
+    mZeroArea = mVertexCount ? 1e-12 * dot(diagonal, diagonal) : 0.0;
     // Faces are found by a parallel scan and visited in face order, as a serial scan would. Collapses
     // here cannot make a face degenerate in double (facesStayValid), only, rarely, after rounding to
     // float: so the scan is repeated until a round over its finds changes nothing.
@@ -545,19 +607,13 @@ size_t Decimator::removeDegenerateFaces()
             remaining = 0;
             for (uint32_t f : candidates) {
                 if (!mFaces[f].alive || !degenerate(f)) continue;
-                const auto v = mFaces[f].v;
-                bool done = false;
-                for (int k = 0; k < 3 && !done; ++k) {
-                    const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
-                    if (!mMeta[a].final || !mMeta[b].final) continue;
-                    done = collapse(a, b);
-                }
-                if (done || dropFlatComponent(f)) progress = rescan = true;
+                if (collapseCheapestEdge(f) || dropFlatComponent(f)) progress = rescan = true;
                 else ++remaining;
             }
         }
     }
     mMinNormalCos = savedCos;
+    mZeroArea = 0.0;
     return remaining;
 }
 

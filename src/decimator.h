@@ -4,13 +4,15 @@
 // as in Hou & Chen, "On-the-fly simplification of large iso-surfaces with per-cube vertex modifiability
 // detection": quadrics are accumulated as faces arrive and kept across batches; one persistent priority
 // queue holds the edges whose two ends are final (modifiability.h), with lazy invalidation by per-vertex
-// version numbers. A collapse moves the survivor to the quadric's optimum (else the best of the two ends
-// and the midpoint) and is refused when it would break the link condition (the mesh stays 2-manifold),
-// flip or degenerate a face.
+// version numbers. A collapse moves the survivor to the cheapest of the quadric's optimum, the best point
+// of the edge, its ends and midpoint that keeps every face valid, and is charged that placement's cost;
+// it is refused when it would break the link condition (the mesh stays 2-manifold), or when no
+// placement avoids flipping or degenerating a face.
 #pragma once
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <unordered_map>
 #include <utility>
@@ -50,9 +52,9 @@ public:
     // The open vertices whose edge key `which` accepts become final (in id order); returns how many.
     size_t finalizeOpen(const std::function<bool(EdgeKey)>& which);
 
-    // Collapses an edge of every zero-area face left over (coincident vertices where voxels sit exactly
-    // at the iso-value) when a legal collapse exists, and drops tiny components that are flat all
-    // over (no area, no volume). Returns how many zero-area faces remain.
+    // Collapses the cheapest legal edge of every zero-area face left over (area at most 1e-12 of the
+    // squared bounding-box diagonal: coincident vertices where voxels sit at the iso-value), and drops
+    // tiny components that are flat all over (no area, no volume). Returns how many remain.
     size_t removeDegenerateFaces();
 
     // Last resort when edge collapses cannot reach the target (many small closed components, each
@@ -89,12 +91,17 @@ private:
     // and a vertex's faces are walked by following `next`.
     static constexpr uint32_t kNone = UINT32_MAX;
     // A vertex in two arrays: what the queue and the ring walks read on every step (20 bytes, three
-    // to a cache line) apart from the geometry the cost and fold checks need (64 bytes, one line).
+    // to a cache line) apart from the geometry the cost and fold checks need (104 bytes).
     // One 88-byte record made every queue check load a line or two of position and quadric it did
     // not use.
     struct VertexGeom {
         std::array<double, 3> p{};
-        PackedQuadric q;  // around p
+        // Written around p, where the planes of the vertex's own faces have no linear or constant
+        // part, so precision does not depend on how far the mesh is from the origin. In double: a
+        // float quadric of a large flat region (area 1e3, rank 1) carries rounding noise of 1e-4 in
+        // its other directions, as large as the cost of cutting a sharp edge, and let collapses swing
+        // triangles across edges as if they were free.
+        Quadric q;
     };
     struct VertexMeta {
         uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
@@ -119,6 +126,13 @@ private:
         uint64_t key;  // cost (float bits) << 32 | lower end
         uint32_t b, stamp;
         uint32_t a() const { return uint32_t(key); }
+        float cost() const
+        {
+            const uint32_t bits = costBits();
+            float f;
+            std::memcpy(&f, &bits, sizeof f);
+            return f;
+        }
         uint32_t costBits() const { return uint32_t(key >> 32); }
         static Candidate make(uint32_t costBits, uint32_t a, uint32_t b, uint32_t stamp)
         {
@@ -137,13 +151,26 @@ private:
     void finalize(uint32_t v);
     uint32_t nextStamp();
     void neighbours(uint32_t v, std::vector<uint32_t>& out);
-    std::array<double, 3> placement(uint32_t a, uint32_t b, double* cost) const;
+    // A candidate position of a collapse's survivor and the edge quadric's error there.
+    struct Placement {
+        std::array<double, 3> p;
+        double cost;
+    };
+    static constexpr size_t kPlacements = 5;
+    // The candidates of edge ab, cheapest first; returns how many (at most kPlacements).
+    size_t placements(uint32_t a, uint32_t b, Placement out[kPlacements]) const;
     void push(uint32_t a, uint32_t b);
+    void pushAt(uint32_t a, uint32_t b, double cost);
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
     bool liveFinalPair(uint32_t a, uint32_t b) const;
     void dropDeadEntries();
-    bool collapse(uint32_t a, uint32_t b);
+    // Collapses the edge of face f whose cheapest valid placement costs least (zero-area faces).
+    bool collapseCheapestEdge(uint32_t f);
+    enum class Outcome { Collapsed, Refused, Costlier };
+    // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
+    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
+    Outcome collapse(uint32_t a, uint32_t b, float maxCost, double* cost);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
@@ -161,9 +188,11 @@ private:
         uint32_t a, b, stamp;
     };
     std::vector<Refused> mRefused;
+
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0, mAttempts = 0;
     double mMinNormalCos = 0.17;
+    double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;
     uint32_t mStamp = 0;

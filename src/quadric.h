@@ -20,6 +20,15 @@ struct Quadric {
         q[7] += w * c * c; q[8] += w * c * d; q[9] += w * d * d;
     }
 
+    // Adds w times the squared distance to the origin of the quadric's coordinates (the point it is
+    // written around).
+    void addPoint(double w)
+    {
+        q[0] += w;
+        q[4] += w;
+        q[7] += w;
+    }
+
     Quadric& operator+=(const Quadric& o)
     {
         for (int i = 0; i < 10; ++i) q[i] += o.q[i];
@@ -60,25 +69,6 @@ struct Quadric {
         p = {(c00 * rx + c01 * ry + c02 * rz) * inv, (c01 * rx + c11 * ry + c12 * rz) * inv,
              (c02 * rx + c12 * ry + c22 * rz) * inv};
         return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
-    }
-};
-
-// How the decimator stores a vertex's quadric: in float, written around the vertex's own position.
-// There the linear and constant parts are small (zero for the planes of the vertex's own faces), so
-// float keeps the precision that world coordinates far from the origin would need double for, at
-// half the memory (the vertex array is most of the intermediate mesh). Arithmetic is done in double.
-struct PackedQuadric {
-    std::array<float, 10> q{};
-
-    Quadric unpack() const
-    {
-        Quadric r;
-        for (int i = 0; i < 10; ++i) r.q[i] = q[i];
-        return r;
-    }
-    void pack(const Quadric& r)
-    {
-        for (int i = 0; i < 10; ++i) q[i] = float(r.q[i]);
     }
 };
 
