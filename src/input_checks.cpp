@@ -510,9 +510,10 @@ struct TopologyWalk {
         for (uint64_t w = 0; w < childMask.size(); ++w)
             for (uint64_t bits = childMask[w]; bits; bits &= bits - 1) {
                 const uint64_t i = w * 64 + uint64_t(__builtin_ctzll(bits));
-                const std::array<int32_t, 3> c = {origin[0] + (int32_t(i >> (2 * log2)) << childTotal),
-                                                  origin[1] + (int32_t((i >> log2) & uint64_t(dim - 1)) << childTotal),
-                                                  origin[2] + (int32_t(i & uint64_t(dim - 1)) << childTotal)};
+                // Wrapping like OpenVDB's own coordinates: a stored origin may lie anywhere.
+                const auto at = [&](int a, uint64_t local) { return int32_t(uint32_t(origin[a]) + uint32_t(local << childTotal)); };
+                const std::array<int32_t, 3> c = {at(0, i >> (2 * log2)), at(1, (i >> log2) & uint64_t(dim - 1)),
+                                                  at(2, i & uint64_t(dim - 1))};
                 if (log2 == kLog2Upper) {
                     internal(kLog2Lower, c);
                 } else {

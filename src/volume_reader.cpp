@@ -133,7 +133,8 @@ public:
                 continue;
             }
             const openvdb::Coord o = leaf->origin();
-            std::lock_guard<std::mutex> lock(mLoadMutex[size_t(uint32_t(o.x() * 73856093 ^ o.y() * 19349663 ^ o.z() * 83492791) % kLoadStripes)]);
+            const uint32_t stripe = uint32_t(o.x()) * 73856093u ^ uint32_t(o.y()) * 19349663u ^ uint32_t(o.z()) * 83492791u;
+            std::lock_guard<std::mutex> lock(mLoadMutex[stripe % kLoadStripes]);
             if (!leaf->buffer().isOutOfCore()) continue;
             try {
                 loadLeaf(*leaf, mInfo.gridName);
