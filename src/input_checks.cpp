@@ -669,7 +669,12 @@ void checkTransform(const openvdb::math::Transform& xform)
 {
     if (!xform.isLinear())
         throw InputError("has a non-linear transform (" + xform.mapType() + "); only linear transforms are supported");
-    const openvdb::Mat4d m = xform.baseMap()->getAffineMap()->getMat4();
+    openvdb::Mat4d m;
+    try {
+        m = xform.baseMap()->getAffineMap()->getMat4();  // a scale map builds its affine map here
+    } catch (const std::exception&) {
+        throw InputError("has a singular transform (OpenVDB cannot invert its map)");
+    }
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c)
             if (!std::isfinite(m(r, c))) throw InputError("has a transform with non-finite coefficients");
