@@ -137,7 +137,7 @@ static Quadric edgeQuadric(const V3& pa, const Quadric& qa, const V3& pb, const 
     return q;
 }
 
-size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements]) const
+size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements], bool cheapestOnly) const
 {
     const VertexGeom& va = mGeom[a];
     const VertexGeom& vb = mGeom[b];
@@ -148,7 +148,14 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements])
     const V3 d = sub(vb.p, va.p);
     size_t n = 0;
     V3 y;
-    if (q.optimum(y)) out[n++] = {y, 0};
+    if (q.optimum(y)) {
+        out[n++] = {y, 0};
+        // The optimum is the cheapest point there is.
+        if (cheapestOnly) {
+            out[0].cost = std::max(0.0, q.error(y));
+            return 1;
+        }
+    }
     const double dAd = q.q[0] * d[0] * d[0] + q.q[4] * d[1] * d[1] + q.q[7] * d[2] * d[2] +
                        2 * (q.q[1] * d[0] * d[1] + q.q[2] * d[0] * d[2] + q.q[5] * d[1] * d[2]);
     const double bd = q.q[3] * d[0] + q.q[6] * d[1] + q.q[8] * d[2];
@@ -173,7 +180,7 @@ void Decimator::push(uint32_t a, uint32_t b)
     // The cheapest placement, valid or not: a lower bound on what the collapse will cost (collapse()
     // checks validity and sends the pair back when a valid placement costs more).
     Placement p[kPlacements];
-    placements(a, b, p);
+    placements(a, b, p, true);
     pushAt(a, b, p[0].cost);
 }
 
@@ -219,23 +226,34 @@ void Decimator::finalize(uint32_t v)
         if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
 }
 
-bool Decimator::collapseCheapestEdge(uint32_t f)
+bool Decimator::collapseCheapestEdge(uint32_t f, bool aroundFace)
 {
+    // The face's own edges, or with aroundFace the other edges at its corners: where the link condition
+    // refuses every edge of a zero-area face (twins on a voxel corner with a third common neighbour),
+    // collapsing a neighbouring edge first changes what the link condition sees.
     const auto v = mFaces[f].v;
+    std::vector<std::pair<uint32_t, uint32_t>> edges;
+    if (!aroundFace) {
+        for (int k = 0; k < 3; ++k) edges.push_back({std::min(v[k], v[(k + 1) % 3]), std::max(v[k], v[(k + 1) % 3])});
+    } else {
+        for (uint32_t x : v) {
+            neighbours(x, mScratchB);
+            for (uint32_t n : mScratchB)
+                if (n != v[0] && n != v[1] && n != v[2]) edges.push_back({std::min(x, n), std::max(x, n)});
+        }
+    }
     double best = std::numeric_limits<double>::infinity();
-    int which = -1;
-    for (int k = 0; k < 3; ++k) {
-        const uint32_t a = std::min(v[k], v[(k + 1) % 3]), b = std::max(v[k], v[(k + 1) % 3]);
+    std::pair<uint32_t, uint32_t> pick{kNone, kNone};
+    for (const auto& [a, b] : edges) {
         double cost;
         if (!mMeta[a].final || !mMeta[b].final || collapse(a, b, -1.0f, &cost) != Outcome::Costlier) continue;
         if (cost < best) {
             best = cost;
-            which = k;
+            pick = {a, b};
         }
     }
-    if (which < 0) return false;
-    const uint32_t a = std::min(v[which], v[(which + 1) % 3]), b = std::max(v[which], v[(which + 1) % 3]);
-    return collapse(a, b, std::numeric_limits<float>::infinity(), nullptr) == Outcome::Collapsed;
+    if (pick.first == kNone) return false;
+    return collapse(pick.first, pick.second, std::numeric_limits<float>::infinity(), nullptr) == Outcome::Collapsed;
 }
 
 void Decimator::addBlock(const BlockMesh& block)
@@ -451,7 +469,7 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
     // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
     Placement places[kPlacements];
-    const size_t count = placements(a, b, places);
+    const size_t count = placements(a, b, places, false);
     size_t place = 0;
     while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
     if (place == count) return Outcome::Refused;
@@ -568,6 +586,41 @@ bool Decimator::dropFlatComponent(uint32_t seed)
     return true;
 }
 
+bool Decimator::openPinch(uint32_t f)
+{
+    // Where the surface touches itself at one voxel corner (values exactly at the iso-value on both
+    // sides of it), no collapse keeps the mesh manifold: the link condition refuses every edge near the
+    // twins. One corner moves off the other by 1e-5 of the diagonal, along the normal of its own faces,
+    // which opens the pinch and gives the face an area without moving the surface visibly.
+    const double step = 1e-5 * std::sqrt(mZeroArea / 1e-12);
+    for (int k = 0; k < 3; ++k) {
+        const uint32_t x = mFaces[f].v[k];
+        V3 normal{0, 0, 0};
+        for (uint32_t c = mMeta[x].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
+            const V3 n = cross(sub(mGeom[fv[1]].p, mGeom[fv[0]].p), sub(mGeom[fv[2]].p, mGeom[fv[0]].p));
+            for (int i = 0; i < 3; ++i) normal[i] += n[i];
+        }
+        const double len = std::sqrt(dot(normal, normal));
+        if (!(len > 0)) continue;
+        for (double sign : {1.0, -1.0}) {
+            const V3 old = mGeom[x].p;
+            const V3 p{old[0] + sign * step * normal[0] / len, old[1] + sign * step * normal[1] / len, old[2] + sign * step * normal[2] / len};
+            if (!facesStayValid(x, kNone, p)) continue;
+            mGeom[x].p = p;
+            if (degenerate(f)) {
+                mGeom[x].p = old;
+                continue;
+            }
+            mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
+            ++mMeta[x].version;
+            ++mMeta[x].ring;
+            return true;
+        }
+    }
+    return false;
+}
+
 size_t Decimator::removeDegenerateFaces()
 {
     // A zero-area face has no normal worth keeping, but its neighbours do: any turn short of a fold
@@ -607,8 +660,10 @@ size_t Decimator::removeDegenerateFaces()
             remaining = 0;
             for (uint32_t f : candidates) {
                 if (!mFaces[f].alive || !degenerate(f)) continue;
-                if (collapseCheapestEdge(f) || dropFlatComponent(f)) progress = rescan = true;
-                else ++remaining;
+                if (collapseCheapestEdge(f, false) || dropFlatComponent(f) || collapseCheapestEdge(f, true) || openPinch(f))
+                    progress = rescan = true;
+                else
+                    ++remaining;
             }
         }
     }

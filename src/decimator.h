@@ -157,16 +157,19 @@ private:
         double cost;
     };
     static constexpr size_t kPlacements = 5;
-    // The candidates of edge ab, cheapest first; returns how many (at most kPlacements).
-    size_t placements(uint32_t a, uint32_t b, Placement out[kPlacements]) const;
+    // The candidates of edge ab, cheapest first; returns how many (at most kPlacements). With
+    // cheapestOnly, out[0] is the cheapest (for the queue's cost) and may be the only one.
+    size_t placements(uint32_t a, uint32_t b, Placement out[kPlacements], bool cheapestOnly) const;
     void push(uint32_t a, uint32_t b);
     void pushAt(uint32_t a, uint32_t b, double cost);
     bool current(const Candidate& c) const;
     bool edgeExists(uint32_t a, uint32_t b) const;
     bool liveFinalPair(uint32_t a, uint32_t b) const;
     void dropDeadEntries();
-    // Collapses the edge of face f whose cheapest valid placement costs least (zero-area faces).
-    bool collapseCheapestEdge(uint32_t f);
+    // Collapses the edge of face f (with aroundFace: the other edges at its corners) whose cheapest
+    // valid placement costs least; for zero-area faces.
+    bool collapseCheapestEdge(uint32_t f, bool aroundFace);
+    bool openPinch(uint32_t f);
     enum class Outcome { Collapsed, Refused, Costlier };
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
     // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
