@@ -91,11 +91,15 @@ struct SlabStats {
 };
 
 // Serial, in-order stage of one slab: integration and the decimation schedule of the paper's
-// section 4.2, with B faces per batch.
+// section 4.2, with B faces per batch, one step beyond it: half of B is deferral room. A pass runs
+// every B/2 new faces and stops B/2 above the paper's target F_t, so the costliest collapses of a pass
+// wait in the queue, where a later pass (the final one at the latest) weighs them against the rest of
+// the surface. The intermediate mesh keeps the paper's bound, F_t + B. (A batch held to F_t pays for
+// the face budget with its own sharpest features even where another batch has cheaper collapses.)
 class Integrator {
 public:
     Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
-        : mOpt(o), mRatio(ratio), mBatch(batch), mSlab(slab)
+        : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab)
     {
         mInitial = ratio < o.initialRatio;
     }
@@ -110,13 +114,13 @@ public:
             // below the regular target: the final mesh must still be able to reach R*F.
             if (mDec.faceCount() + incoming > mBatch && mDec.faceCount() > 0) {
                 const uint64_t initial = phaseTarget(double(mDec.faceCount()), mOpt.initialRatio);
-                const uint64_t regular = phaseTarget(double(mFacesGenerated), mRatio);
+                const uint64_t regular = batchTarget(double(mFacesGenerated));
                 if (regular >= initial) mInitial = false;
                 decimate(std::max(initial, regular));
                 mSinceLast = 0;
             }
-        } else if (mSinceLast + incoming > mBatch && mSinceLast > 0) {
-            decimate(phaseTarget(double(mFacesGenerated), mRatio));
+        } else if (mSinceLast + incoming > mBatch - mDefer && mSinceLast > 0) {
+            decimate(batchTarget(double(mFacesGenerated)));
             mSinceLast = 0;
         }
         mDec.addBlock(b);
@@ -153,7 +157,7 @@ public:
     // so the serial final pass is left with the seams.
     void finishSlab()
     {
-        if (mSinceLast > 0 && !mInitial) decimate(phaseTarget(double(mFacesGenerated), mRatio));
+        if (mSinceLast > 0 && !mInitial) decimate(batchTarget(double(mFacesGenerated)));
         mSinceLast = 0;
     }
 
@@ -168,7 +172,7 @@ public:
             return e.z == seamZ && e.axis != 2;
         });
         mAbsorbedFaces += above.mFacesGenerated + above.mAbsorbedFaces;
-        if (!mInitial) decimate(phaseTarget(double(mFacesGenerated + mAbsorbedFaces), mRatio));
+        if (!mInitial) decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated; }
@@ -184,6 +188,9 @@ private:
         return uint64_t(std::max(0.0, faces - fu) * rate + fu);
     }
 
+    // Where a pass before the final one stops: F_t plus the deferral room.
+    uint64_t batchTarget(double faces) const { return phaseTarget(faces, mRatio) + mDefer; }
+
     void decimate(uint64_t target)
     {
         DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target, mSlab};
@@ -196,7 +203,7 @@ private:
 
     const Options& mOpt;
     double mRatio;
-    uint64_t mBatch;
+    uint64_t mBatch, mDefer;
     uint32_t mSlab;
     Decimator mDec;
     SlabStats mStats;

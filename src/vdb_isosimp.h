@@ -43,7 +43,8 @@ struct Options {
     double ratio = 0.2;
     // If > 0: keep this many faces instead (an exact counting pass over the blocks turns it into R).
     uint64_t targetFaces = 0;
-    // B: new faces extracted between two decimations. Bigger: better quality, more memory. Default 100000.
+    // B: the intermediate mesh holds at most R*F + B faces; a pass runs every B/2 new faces and leaves
+    // B/2 of room for collapses deferred to a later pass. Bigger: better quality, more memory. Default 100000.
     uint64_t batchFaces = 100000;
     // R_i: rate of the initial phase (paper, section 4.2) used while R < R_i. Default 0.5.
     double initialRatio = 0.5;

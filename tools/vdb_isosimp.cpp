@@ -282,7 +282,7 @@ int main(int argc, char** argv)
                          ->check(CLI::PositiveNumber);
     ratioOpt->excludes(facesOpt);
     app.add_option("-b,--batch", opt.batchFaces,
-                   "B: faces extracted between two decimations; larger is slower but closer to in-core quality")
+                   "B: room for new faces between two decimations (half holds collapses deferred to a later pass); larger is slower but closer to in-core quality")
         ->default_val(opt.batchFaces)
         ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 40));
     app.add_option("-j,--threads", opt.threads, "Worker threads, 0 = all cores; the output is the same for any count")
