@@ -4,6 +4,7 @@
 #include "mesh_error.h"
 #include "mesh_stats.h"
 #include "reference_decimate.h"
+#include "surface_checks.h"
 #include "test_volumes.h"
 #include "vdb_isosimp.h"
 
@@ -29,18 +30,6 @@ Result run(const volumes::TestVolume& v, double ratio, uint64_t batch = Options{
     return simplifyGrid(*v.grid, o);
 }
 
-// Closed, manifold, outward, and no face of area <= 1e-12 of the squared bounding-box diagonal.
-void expectCleanSurface(const Mesh& m, const std::string& what)
-{
-    const double diagonal = eval::computeMeshStats(m).bboxDiagonal;
-    const eval::MeshStats s = eval::computeMeshStats(m, 1e-12 * diagonal * diagonal);
-    EXPECT_TRUE(s.closed() && s.manifold() && s.oriented()) << what << ": boundary " << s.boundaryEdges << ", non-manifold "
-                                                            << s.nonManifoldEdges << "/" << s.nonManifoldVertices
-                                                            << ", misoriented " << s.misorientedEdges;
-    EXPECT_GT(s.signedVolume, 0) << what << ": normals point inward";
-    EXPECT_EQ(s.zeroAreaFaces, 0u) << what;
-}
-
 class HardSurface : public ::testing::TestWithParam<std::tuple<std::string, bool>> {};
 
 // Acceptance 1: symmetric Hausdorff <= max(1.1 x OpenMesh's, 0.02 % of the diagonal), RMS <= max(1.1 x
@@ -54,7 +43,7 @@ TEST_P(HardSurface, AsExactAsOpenMeshAtEveryRatioAndBatch)
         for (uint64_t b : {uint64_t(1000), Options{}.batchFaces}) {
             const Mesh ours = run(v, r, b).mesh;
             const std::string what = v.grid->getName() + " R=" + std::to_string(r) + " B=" + std::to_string(b);
-            expectCleanSurface(ours, what);
+            vdb_isosimp::testing::expectClosedOutward(ours, false, what);
             const eval::SurfaceError e = eval::surfaceError(full, ours, 200000);
             const eval::SurfaceError om = eval::surfaceError(full, eval::decimateWithOpenMesh(full, ours.triangles.size()), 200000);
             std::printf("[fidelity] %s faces %zu -> %zu  RMS %% ours %.5f openmesh %.5f  Hausdorff %% ours %.4f openmesh %.4f\n",
@@ -81,7 +70,7 @@ TEST(ExactIso, IntegerVolumeLeavesNoSliversAndIgnoresThreadCount)
         const volumes::TestVolume v = volumes::makeVolume("ct-int", kSize, rotated);
         for (double r : {0.5, 0.2, 0.05}) {
             const Result one = run(v, r, 1000, 1), two = run(v, r, 1000, 2);
-            expectCleanSurface(one.mesh, v.grid->getName() + " R=" + std::to_string(r));
+            vdb_isosimp::testing::expectClosedOutward(one.mesh, false, v.grid->getName() + " R=" + std::to_string(r));
             EXPECT_TRUE(one.mesh.points == two.mesh.points && one.mesh.triangles == two.mesh.triangles) << r;
         }
     }

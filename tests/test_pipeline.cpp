@@ -5,6 +5,7 @@
 #include "mesh_error.h"
 #include "mesh_stats.h"
 #include "reference_decimate.h"
+#include "surface_checks.h"
 #include "test_grids.h"
 #include "test_volumes.h"
 #include "vdb_isosimp.h"
@@ -24,6 +25,7 @@
 
 using namespace vdb_isosimp;
 namespace vt = vdb_isosimp::testing;
+using vt::expectClosedOutward;
 
 namespace {
 
@@ -117,19 +119,6 @@ std::string noiseFile()
     return path;
 }
 
-void expectClosedOutward(const Mesh& m, bool allowZeroArea, const std::string& what)
-{
-    // Zero area: at most 1e-12 of the squared bounding-box diagonal.
-    const double diagonal = eval::computeMeshStats(m).bboxDiagonal;
-    const eval::MeshStats s = eval::computeMeshStats(m, 1e-12 * diagonal * diagonal);
-    EXPECT_TRUE(s.closed()) << what << ": boundary " << s.boundaryEdges << " non-manifold edges " << s.nonManifoldEdges;
-    EXPECT_TRUE(s.manifold()) << what << ": non-manifold vertices " << s.nonManifoldVertices;
-    EXPECT_TRUE(s.oriented()) << what << ": misoriented edges " << s.misorientedEdges;
-    EXPECT_GT(s.signedVolume, 0) << what << ": normals point inward";
-    if (!allowZeroArea) {
-        EXPECT_EQ(s.zeroAreaFaces, 0u) << what;
-    }
-}
 
 } // namespace
 
