@@ -143,13 +143,16 @@ struct GridEntry {
     std::string type;        // tree type, "_HalfFloat" appended when stored as half floats
     std::string parent;      // instance parent (unique name); empty for a grid with its own tree
     uint64_t gridPos = 0, blockPos = 0, endPos = 0;
+    bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
 };
 
 struct FileEntries {
     uint32_t version = 0;
-    bool checkable = false;  // a layout whose grids can be walked (version >= 222, with offsets)
+    bool checkable = false;  // false only for files that cannot be walked without being consumed (pipes)
     std::vector<GridEntry> grids;
 };
+
+void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids, FileEntries& out);
 
 // Sizes of the metadata values OpenVDB reads as a fixed number of bytes whatever the stored size says
 // (a stored size that disagrees would shift every read after it).
@@ -393,17 +396,24 @@ FileEntries readFileEntries(const std::string& path)
     uint32_t major = 0, minor = 0;
     char hasOffsets = 0;
     if (!in.value(out.version)) damaged(path, "header ends early");
-    // Older layouts (before 2013) differ in their header; OpenVDB alone reads them.
-    if (out.version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) return out;
+    // Older layouts differ in their header and their trees; OpenVDB would read them unchecked.
+    if (out.version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
+        throw InputError(path + ": OpenVDB file format " + std::to_string(out.version) + " is older than format " +
+                         std::to_string(openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) +
+                         ", the oldest this tool reads; save the file again with a current OpenVDB");
     if (!in.value(major) || !in.value(minor) || !in.value(hasOffsets) || !in.skip(36))  // 36: UUID text
         damaged(path, "header ends early");
-    if (!hasOffsets) return out;  // written as a stream: no offsets to check
 
     const std::string fileMeta = walkMetaMap(in, size, 0, nullptr);
     if (!fileMeta.empty()) damaged(path, "file " + fileMeta);
 
     int32_t grids = 0;
     if (!in.value(grids) || grids < 0 || uint64_t(grids) > in.left() / 36) damaged(path, "grid count ends early or is invalid");
+    if (!hasOffsets) {
+        walkStreamedGrids(path, in, grids, out);
+        out.checkable = true;
+        return out;
+    }
     for (int32_t g = 0; g < grids; ++g) {
         GridEntry e;
         int64_t gridPos = 0, blockPos = 0, endPos = 0;
@@ -440,7 +450,7 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     if (!in.seek(e.gridPos) || !in.value(compression)) damaged(path, "grid '" + e.name + "' ends early");
     if (compression & ~uint32_t(0x7)) damaged(path, "grid '" + e.name + "' has unknown compression flags");
     // A leaf record takes at least its value mask and code byte.
-    const uint64_t maxLeaves = e.blockPos ? (e.endPos - e.blockPos) / 65 : 0;
+    const uint64_t maxLeaves = e.blockPos || e.streamed ? (e.endPos - std::max(e.blockPos, e.gridPos)) / 65 : 0;
     const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed);
     if (!meta.empty()) damaged(path, "grid '" + e.name + "': " + meta);
     std::string mapType;
@@ -558,49 +568,32 @@ struct TopologyWalk {
     }
 };
 
-} // namespace
-
-VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridName)
+// The trees this walk knows: Tree4<float or double, 5, 4, 3>, maybe stored as half floats.
+bool treeFormat(std::string type, bool& half, uint64_t& valueSize)
 {
-    VdbGridLayout layout;
-    const FileEntries f = readFileEntries(path);
-    if (!f.checkable) return layout;
-    const GridEntry* e = nullptr;
-    for (const GridEntry& g : f.grids)
-        if (g.uniqueName == gridName) { e = &g; break; }
-    if (!e)
-        for (const GridEntry& g : f.grids)
-            if (g.plain == gridName) { e = &g; break; }
-    if (!e) return layout;
-    const std::string name = e->name;
-    if (!e->parent.empty()) {  // an instance reads its parent's tree
-        const GridEntry* p = nullptr;
-        for (const GridEntry& g : f.grids)
-            if (g.uniqueName == e->parent) p = &g;
-        if (!p) return layout;
-        e = p;
-    }
-    std::string type = e->type;
     const std::string halfSuffix = "_HalfFloat";
-    const bool half = type.size() > halfSuffix.size() && type.compare(type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0;
+    half = type.size() > halfSuffix.size() && type.compare(type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0;
     if (half) type.resize(type.size() - halfSuffix.size());
-    const uint64_t valueSize = type == "Tree_float_5_4_3" ? 4 : type == "Tree_double_5_4_3" ? 8 : 0;
-    if (!valueSize || e->blockPos == 0) return layout;
+    valueSize = type == "Tree_float_5_4_3" ? 4 : type == "Tree_double_5_4_3" ? 8 : 0;
+    return valueSize != 0;
+}
 
-    struct stat st {};
-    if (::stat(path.c_str(), &st) != 0) return layout;
-    BoundedReader in(path, uint64_t(st.st_size));
-    uint32_t compression = 0;
-    DelayedLoadSizes delayed;
-    if (!walkGridHeader(path, in, *e, compression, &delayed)) return layout;
-
+// Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
+// record: the topology node by node, then every leaf's record (value mask, then the voxel values:
+// walkValues) in the topology's leaf order. `e` gives where the topology must end and the grid must
+// end; a streamed entry learns them here.
+void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
+              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout)
+{
+    const std::string& name = e.name;
+    const bool locate = e.streamed && e.blockPos == 0;
     TopologyWalk topo{path, name, in, compression, half, valueSize, layout};
     topo.root();
-    if (in.pos() != e->blockPos)
+    if (locate) e.blockPos = in.pos();
+    if (in.pos() != e.blockPos)
         damaged(path, "grid '" + name + "': topology ends at byte " + std::to_string(in.pos()) + ", its data starts at " +
-                          std::to_string(e->blockPos));
+                          std::to_string(e.blockPos));
 
-    // Leaf records: value mask, then the voxel values (walkValues), in the topology's leaf order.
     const size_t leaves = layout.leafOrigins.size();
     const bool maskCompressed = compression & openvdb::io::COMPRESS_ACTIVE_MASK;
     const bool chunked = compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP);
@@ -608,8 +601,8 @@ VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridN
         (delayed.codes.size() != leaves || (chunked && delayed.sizes.size() != leaves)))
         damaged(path, "grid '" + name + "': delayed-load metadata lists " + std::to_string(delayed.codes.size()) +
                           " leaves, the topology has " + std::to_string(leaves));
-    in.setLimit(e->endPos);
-    if (!in.seek(e->blockPos)) damaged(path, "grid '" + name + "' ends early");
+    in.setLimit(e.endPos);
+    if (!in.seek(e.blockPos)) damaged(path, "grid '" + name + "' ends early");
     for (size_t i = 0; i < leaves; ++i) {
         const auto leafError = [&](const std::string& why) {
             throw InputError(path + ": grid '" + name + "', leaf " + coordText(layout.leafOrigins[i]) +
@@ -629,9 +622,87 @@ VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridN
                 leafError("its size differs from the delayed-load metadata");
         }
     }
-    if (in.pos() != e->endPos)
+    if (locate) e.endPos = in.pos();
+    if (in.pos() != e.endPos)
         damaged(path, "grid '" + name + "': leaf data ends at byte " + std::to_string(in.pos()) + ", the grid at " +
-                          std::to_string(e->endPos));
+                          std::to_string(e.endPos));
+}
+
+// A file written as a stream (io::Stream) states no grid offsets, and OpenVDB reads every grid in it,
+// voxels included, as it opens the file. So every grid is walked here in turn (descriptor, header,
+// tree) to find where it ends and the next begins; a grid whose tree or transform this walk does not
+// know cannot be checked, and the file is refused rather than read unchecked.
+void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids, FileEntries& out)
+{
+    const uint64_t size = in.pos() + in.left();
+    for (int32_t g = 0; g < grids; ++g) {
+        GridEntry e;
+        int64_t unusedOffsets[3];
+        in.setLimit(size);
+        if (!in.string(&e.uniqueName, 1 << 16) || !in.string(&e.type) || !in.string(&e.parent, 1 << 16) ||
+            !in.bytes(unusedOffsets, sizeof unusedOffsets))
+            damaged(path, "descriptor of grid " + std::to_string(g + 1) + " of " + std::to_string(grids) + " ends early");
+        e.plain = e.uniqueName.substr(0, e.uniqueName.find('\x1e'));
+        e.name = printable(e.plain);
+        e.gridPos = in.pos();
+        e.endPos = size;
+        e.streamed = true;
+        const std::string refused = path + ": grid '" + e.name + "' of a file written without grid offsets (as a stream) ";
+        uint32_t compression = 0;
+        DelayedLoadSizes delayed;
+        if (!walkGridHeader(path, in, e, compression, &delayed))
+            throw InputError(refused + "has a transform that cannot be checked before OpenVDB reads the whole file");
+        if (e.parent.empty()) {
+            bool half = false;
+            uint64_t valueSize = 0;
+            if (!treeFormat(e.type, half, valueSize))
+                throw InputError(refused + "is of type " + printable(e.type) +
+                                 ": only float and double grids can be checked before OpenVDB reads the whole file;"
+                                 " save it again as a file with offsets (openvdb::io::File)");
+            in.setLimit(size);
+            VdbGridLayout layout;
+            walkTree(path, in, e, compression, half, valueSize, delayed, layout);
+        } else {
+            e.endPos = in.pos();  // an instance stores its metadata and transform only
+        }
+        out.grids.push_back(std::move(e));
+    }
+}
+
+} // namespace
+
+VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridName)
+{
+    VdbGridLayout layout;
+    const FileEntries f = readFileEntries(path);
+    if (!f.checkable) return layout;
+    const GridEntry* e = nullptr;
+    for (const GridEntry& g : f.grids)
+        if (g.uniqueName == gridName) { e = &g; break; }
+    if (!e)
+        for (const GridEntry& g : f.grids)
+            if (g.plain == gridName) { e = &g; break; }
+    if (!e) return layout;
+    GridEntry tree = *e;
+    if (!e->parent.empty()) {  // an instance reads its parent's tree
+        const GridEntry* p = nullptr;
+        for (const GridEntry& g : f.grids)
+            if (g.uniqueName == e->parent) p = &g;
+        if (!p) return layout;
+        tree = *p;
+        tree.name = e->name;
+    }
+    bool half = false;
+    uint64_t valueSize = 0;
+    if (!treeFormat(tree.type, half, valueSize) || tree.blockPos == 0) return layout;
+
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) return layout;
+    BoundedReader in(path, uint64_t(st.st_size));
+    uint32_t compression = 0;
+    DelayedLoadSizes delayed;
+    if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
+    walkTree(path, in, tree, compression, half, valueSize, delayed, layout);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.checked = true;
     return layout;

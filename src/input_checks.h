@@ -20,9 +20,11 @@ namespace vdb_isosimp {
 
 // Walks the header, the metadata and the grid descriptors of a .vdb file and checks that every
 // grid's data lies inside the file, and every grid's metadata and transform (which OpenVDB reads when
-// it lists the grids) inside its grid. Files written without grid offsets (streams) and layouts older
-// than 2013 are left to OpenVDB.
-// @throw InputError naming the file ("truncated or damaged OpenVDB file ...").
+// it lists the grids) inside its grid. In a file written without grid offsets (a stream), which
+// OpenVDB reads whole when it opens it, every grid's tree is walked too (as checkVdbGridData does);
+// such a file with a grid of another type than float or double is refused, as are file formats older
+// than 222.
+// @throw InputError naming the file ("truncated or damaged OpenVDB file ...", or what is refused).
 void checkVdbFileStructure(const std::string& path);
 
 // What checkVdbGridData learned about a grid's tree.

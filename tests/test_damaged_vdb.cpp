@@ -142,7 +142,7 @@ void writeBytes(const std::string& path, const std::string& bytes)
     std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
 }
 
-constexpr int kCasesPerSample = 36;  // 9 samples: 324 damaged files
+constexpr int kCasesPerSample = 36;  // 11 samples: 396 damaged files
 
 class Mutations : public ::testing::TestWithParam<vdb_samples::Sample> {};
 
@@ -192,6 +192,61 @@ TEST_P(Mutations, NeverCrashHangOrRawMessage)
 
 INSTANTIATE_TEST_SUITE_P(DamagedVdb, Mutations, ::testing::ValuesIn(vdb_samples::samples()),
                          [](const ::testing::TestParamInfo<vdb_samples::Sample>& i) { return i.param.name; });
+
+// ---------------------------------------------------------------------------------------------
+// Layouts OpenVDB reads without offsets to check against
+
+// A stream (no grid offsets) is walked grid by grid before OpenVDB reads it whole: undamaged, it
+// meshes exactly as the same grid written as a file.
+TEST(DamagedVdb, StreamMeshesAsTheFile)
+{
+    const std::string d = scratch("stream_clean");
+    const uint32_t blosc = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
+    auto temperature = vdb_samples::half<openvdb::FloatGrid>(vdb_samples::fog());
+    temperature->setName("temperature");
+    std::string meshes[2];
+    for (int stream = 0; stream < 2; ++stream) {
+        const openvdb::GridPtrVec grids = {vdb_samples::sphere(4.0f), temperature, vdb_samples::fog()};
+        if (stream) vdb_samples::writeStream(d + "/in.vdb", grids, blosc);
+        else vdb_samples::write(d + "/in.vdb", grids, blosc);
+        const Outcome o = runLimited(d, {"--grid", "density"});
+        ASSERT_EQ(o.code, 0) << o.err;
+        meshes[stream] = slurp(d + "/out.ply");
+    }
+    EXPECT_GT(meshes[0].size(), 1000u);
+    EXPECT_EQ(meshes[0], meshes[1]);
+}
+
+TEST(DamagedVdb, StreamWithAGridTheWalkDoesNotKnowIsRefused)
+{
+    const std::string d = scratch("stream_vector");
+    auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    vel->setName("vel");
+    vel->tree().setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3s(1.0f, 0.0f, 0.0f));
+    vdb_samples::writeStream(d + "/in.vdb", {vdb_samples::fog(), vel}, openvdb::io::COMPRESS_BLOSC);
+    const Outcome o = runLimited(d);
+    EXPECT_EQ(o.code, 1) << o.err;
+    EXPECT_EQ(badMessage(o.err), "") << o.err;
+    EXPECT_NE(o.err.find("grid 'vel' of a file written without grid offsets (as a stream) is of type Tree_vec3s_5_4_3"),
+              std::string::npos)
+        << o.err;
+    EXPECT_FALSE(exists(d + "/out.ply"));
+}
+
+TEST(DamagedVdb, FormatsOlderThanTheWalkAreRefused)
+{
+    const std::string d = scratch("old_format");
+    vdb_samples::write(d + "/whole.vdb", {vdb_samples::fog()}, openvdb::io::COMPRESS_BLOSC);
+    std::string bytes = slurp(d + "/whole.vdb");
+    const uint32_t old = openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION - 1;
+    bytes.replace(8, 4, reinterpret_cast<const char*>(&old), 4);
+    writeBytes(d + "/in.vdb", bytes);
+    const Outcome o = runLimited(d);
+    EXPECT_EQ(o.code, 1) << o.err;
+    EXPECT_EQ(badMessage(o.err), "") << o.err;
+    EXPECT_NE(o.err.find("OpenVDB file format 221 is older than format 222"), std::string::npos) << o.err;
+    EXPECT_FALSE(exists(d + "/out.ply"));
+}
 
 // ---------------------------------------------------------------------------------------------
 // Located damage

@@ -1,16 +1,17 @@
 // Small .vdb files covering the ways OpenVDB stores a scalar grid: blosc, zip and no compression,
 // with and without active-mask compression, half floats, float and double, level sets, fog volumes
 // and grids of no class, one grid or several (a vector grid and an empty one among them, and names
-// with dots). The
-// mutation test (tests/test_damaged_vdb.cpp) damages them; the committed fuzz corpus
+// with dots), and files written as a stream (no grid offsets). The mutation test (tests/test_damaged_vdb.cpp) damages them; the committed fuzz corpus
 // (tests/fuzz/corpus/vdb_read) is these files, written by `test_hostile --gtest_filter='*WriteCorpus*'`
 // with VDB_ISOSIMP_CORPUS_DIR set.
 #pragma once
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
+#include <openvdb/io/Stream.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <string>
 #include <vector>
@@ -56,6 +57,17 @@ inline void write(const std::string& path, const openvdb::GridPtrVec& grids, uin
     f.close();
 }
 
+// As io::Stream writes it (a pipe, or a file written through a stream): no grid offsets, and
+// OpenVDB reads every grid, voxels included, when it opens the file.
+inline void writeStream(const std::string& path, const openvdb::GridPtrVec& grids, uint32_t compression)
+{
+    openvdb::initialize();
+    std::ofstream os(path, std::ios::binary | std::ios::trunc);
+    openvdb::io::Stream s(os);
+    s.setCompression(compression);
+    s.write(grids);
+}
+
 template <typename GridT>
 typename GridT::Ptr half(typename GridT::Ptr g)
 {
@@ -94,6 +106,12 @@ inline std::vector<Sample> samples()
                      auto temperature = half<openvdb::FloatGrid>(fog());
                      temperature->setName("temperature");
                      write(p, {vel, sphere(4.0f), temperature, fog(), empty}, blosc);
+                 }});
+    s.push_back({"stream_unknown_zip", [=](const std::string& p) { writeStream(p, {fog(openvdb::GRID_UNKNOWN)}, zip); }});
+    s.push_back({"stream_two_grids_blosc", [=](const std::string& p) {
+                     auto temperature = half<openvdb::FloatGrid>(fog());
+                     temperature->setName("temperature");
+                     writeStream(p, {sphere(4.0f), temperature}, blosc);
                  }});
     return s;
 }
