@@ -370,9 +370,16 @@ DistanceStats sampleDistance(const Mesh& A, const TriangleBVH& bvh, size_t sampl
     out.rms = std::sqrt(sum2 / double(out.samples));
 
     // The one-sided Hausdorff distance is often reached at a vertex (a corner sticking out), which
-    // area samples hit with probability zero; so the max also covers every referenced vertex of A.
+    // area samples hit with probability zero; so the max also covers every vertex of a face of A with
+    // area. Vertices of zero-area faces alone are left out: a voxel exactly at the iso-value amid
+    // values on one side gives a closed component of zero area, a single point of the level set that
+    // carries no surface, which simplified surfaces (no zero-area faces) do not keep.
     std::vector<char> used(A.points.size(), 0);
-    for (const auto& t : A.triangles) used[t[0]] = used[t[1]] = used[t[2]] = 1;
+    for (size_t f = 0; f < F; ++f)
+        if (triangleArea(A, f) > 0) {
+            const auto& t = A.triangles[f];
+            used[t[0]] = used[t[1]] = used[t[2]] = 1;
+        }
     const size_t V = A.points.size();
     const size_t nVChunks = (V + kSampleChunk - 1) / kSampleChunk;
     std::vector<double> vmax(nVChunks, 0.0);

@@ -62,10 +62,10 @@ private:
 // One-sided distance from A to B.
 struct DistanceStats {
     double mean = 0, rms = 0;  // over the area samples
-    double max = 0;            // over the area samples and all referenced vertices of A
+    double max = 0;            // over the area samples and the vertices of A's faces with area
     double diagonal = 0;       // bounding box diagonal of A (referenced vertices)
     size_t samples = 0;        // area samples taken on A
-    size_t vertexQueries = 0;  // vertices of A queried for the max
+    size_t vertexQueries = 0;  // vertices of A queried for the max (those of faces with area)
 };
 
 // Two-sided distance; hausdorff = max(ab.max, ba.max).

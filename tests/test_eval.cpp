@@ -407,6 +407,25 @@ TEST(Distance, KnownOffsetOfParallelPlanes) {
     EXPECT_DOUBLE_EQ(d.max, 0.25);
 }
 
+TEST(Distance, ZeroAreaComponentIsNoCorner) {
+    // A = a unit square plus, 5 above it, a closed component of zero area (four faces on one point,
+    // as Marching Cubes makes around a voxel exactly at the iso-value): it carries no surface, so
+    // neither the area samples nor the vertex queries see it. One face of area moved there would.
+    Mesh a, b;
+    a.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5f, 0.5f, 5}, {0.5f, 0.5f, 5}, {0.5f, 0.5f, 5}, {0.5f, 0.5f, 5}};
+    a.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {4, 7, 5}, {5, 7, 6}, {6, 7, 4}};
+    b.points = {{-1, -1, 0.25f}, {2, -1, 0.25f}, {2, 2, 0.25f}, {-1, 2, 0.25f}};
+    b.triangles = {{0, 1, 2}, {0, 2, 3}};
+    const DistanceStats d = sampleDistance(a, b, 1000, 5);
+    EXPECT_DOUBLE_EQ(d.max, 0.25);
+    EXPECT_EQ(d.vertexQueries, 4u);
+    a.points[6] = {0.6f, 0.5f, 5};
+    a.points[7] = {0.5f, 0.6f, 5};
+    const DistanceStats withArea = sampleDistance(a, b, 1000, 5);
+    EXPECT_NEAR(withArea.max, 4.75, 1e-6);
+    EXPECT_EQ(withArea.vertexQueries, 8u);
+}
+
 TEST(Distance, SamplingIsUniformByArea) {
     // A = two triangles, one with 3 times the area of the other, at different heights above B:
     // the mean is the area-weighted average of the heights.

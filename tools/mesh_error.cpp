@@ -44,7 +44,8 @@ int main(int argc, char** argv) {
                  "area on each mesh and measures the exact distance to the other surface. Prints mean,\n"
                  "RMS and max for A->B and B->A, in the meshes' units and in % of the bounding box\n"
                  "diagonal of A (both directions use A's diagonal), and the symmetric Hausdorff\n"
-                 "distance. The max of each direction also covers every vertex of the source mesh.\n"
+                 "distance. The max of each direction also covers every vertex of the source mesh's faces\n"
+                 "with area (a closed component of zero area, a point of the level set, carries no surface).\n"
                  "Reads PLY, OBJ, STL and OFF."};
     std::string pathA, pathB;
     size_t samples = 0;
