@@ -4,7 +4,7 @@
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config
       libopenvdb-dev libboost-iostreams-dev libtbb-dev libopenmesh-dev libcli11-dev
-      libgtest-dev libgmock-dev zlib1g-dev time
+      libgtest-dev libgmock-dev zlib1g-dev libdcmtk-dev libtiff-dev time
       libmeshoptimizer-dev python3-vtk9
       libtinygltf-dev pybind11-dev libboost-python-dev python3-dev python3-numpy python3-openvdb blender
       clang libclang-rt-14-dev)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of tests/fuzz/ with clang (-fsanitize=fuzzer,address,undefined) into
 # build-fuzz/ and runs each for a bounded time over the committed corpus (tests/fuzz/corpus/<target>):
-# about 140 s of fuzzing in all. Fails on any crash, hang (>10 s on one input), leak or sanitizer report;
+# about 160 s of fuzzing in all. Fails on any crash, hang (>10 s on one input), leak or sanitizer report;
 # the input that triggered it is kept as build-fuzz/artifacts/<target>-crash-*.
 #   FUZZ_SECONDS=N      seconds per target (default: 20; raw2vdb and vdb_read get 1.5x)
 #   --update-corpus     merge what the run found into tests/fuzz/corpus (minimised), to commit
@@ -30,10 +30,14 @@ build fuzz_nifti src/raw_header.cpp -lz
 build fuzz_cli_numbers src/raw_header.cpp -lz
 # OpenVDB headers use Imath half floats inline.
 IMATH=$(pkg-config --libs Imath 2>/dev/null || echo -lImath-3_1)
-build fuzz_raw2vdb src/raw_header.cpp src/raw_converter.cpp -lopenvdb -ltbb $IMATH -lz -lpthread
+# The converter reads image stacks too: DICOM through DCMTK, TIFF through libtiff.
+STACKS=(src/slice_source.cpp src/dicom_series.cpp src/tiff_stack.cpp)
+STACK_LIBS=(-ldcmjpls -ldcmjpeg -ldcmimgle -ldcmdata -loflog -lofstd -ltiff)
+build fuzz_raw2vdb src/raw_header.cpp src/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
+build fuzz_image_stacks src/raw_header.cpp src/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
 build fuzz_vdb_read src/volume_reader.cpp src/input_checks.cpp src/block_order.cpp src/marching_cubes.cpp \
   -lopenvdb -ltbb $IMATH -lz -lpthread
-TARGETS=(fuzz_nrrd fuzz_metaimage fuzz_nifti fuzz_cli_numbers fuzz_raw2vdb fuzz_vdb_read)
+TARGETS=(fuzz_nrrd fuzz_metaimage fuzz_nifti fuzz_cli_numbers fuzz_raw2vdb fuzz_image_stacks fuzz_vdb_read)
 
 # OpenVDB and TBB are not instrumented (see scripts/test_sanitize.sh for container-overflow).
 export ASAN_OPTIONS="detect_container_overflow=0:detect_leaks=1"

@@ -4,7 +4,7 @@
 # ctest; any sanitizer report fails the run.
 # Subset, to stay within ~15 minutes on 2 cores (an instrumented build of everything takes over 40):
 # test_hostile (every hostile input, interruption, disk faults), test_cli (the program's errors and
-# outputs) and test_raw2vdb (the converter), all of which run the instrumented programs. Set
+# outputs) and test_raw2vdb + test_image_stacks (the converter), all of which run the instrumented programs. Set
 # SANITIZE_ALL=1 for the whole suite, less the Python module and the Blender add-on (they load our
 # library into an uninstrumented interpreter, which ASan cannot start inside) and the install test.
 set -euo pipefail
@@ -16,7 +16,7 @@ if [ "${SANITIZE_ALL:-0}" = 1 ]; then
   cmake --build build-asan -j"$(nproc)" >> build-asan.log
   SELECT=(-LE "python|blender|install")
 else
-  cmake --build build-asan -j"$(nproc)" --target vdb_isosimp raw2vdb make_volume test_hostile test_cli test_raw2vdb >> build-asan.log
+  cmake --build build-asan -j"$(nproc)" --target vdb_isosimp raw2vdb make_volume test_hostile test_cli test_raw2vdb test_image_stacks >> build-asan.log
   SELECT=(-R "^(hostile|raw2vdb|Cli)\.")
 fi
 # detect_container_overflow=0: OpenVDB, TBB and libstdc++ from Debian are not instrumented, so

@@ -252,9 +252,17 @@ uint64_t peakRssBytes()
     return static_cast<uint64_t>(ru.ru_maxrss) * 1024u;  // Linux: kilobytes
 }
 
-RawVolumeInfo resolveVolumeInfo(const std::string& input, const RawConvertOptions& options)
+namespace {
+
+/// Where the voxels come from: a file read as one byte stream (raw, NRRD, MetaImage, NIfTI), or an image
+/// stack read slice by slice (DICOM series, TIFF stack).
+struct OpenedVolume {
+    RawVolumeInfo info;
+    std::unique_ptr<SliceSource> slices;
+};
+
+void applyOverrides(const std::string& input, const RawConvertOptions& options, RawVolumeInfo& info)
 {
-    RawVolumeInfo info = readVolumeInfo(input, options.layout);
     if (options.spacing) {
         for (int i = 0; i < 3; ++i)
             if (!((*options.spacing)[i] > 0) || !std::isfinite((*options.spacing)[i]))
@@ -266,7 +274,36 @@ RawVolumeInfo resolveVolumeInfo(const std::string& input, const RawConvertOption
             if (!std::isfinite((*options.origin)[i])) throw RawInputError(input, "invalid --origin: not finite");
         info.origin = *options.origin;
     }
-    return info;
+    // Image stacks may state no pixel size at all (a DICOM series without PixelSpacing).
+    for (int i = 0; i < 3; ++i)
+        if (!(info.spacing[i] > 0) || !std::isfinite(info.spacing[i]))
+            throw RawInputError(input, "no valid voxel size in the files (PixelSpacing?): give --spacing X,Y,Z");
+}
+
+OpenedVolume openVolume(const std::string& input, const RawConvertOptions& options)
+{
+    OpenedVolume v;
+    if (isSliceStackInput(input)) {
+        SliceSourceOptions so;
+        so.series = options.series;
+        v.slices = openSliceSource(input, so);
+        v.info = v.slices->info();
+    } else {
+        if (!options.series.empty()) throw RawInputError(input, "--series applies to a folder of DICOM files");
+        v.info = readVolumeInfo(input, options.layout);
+    }
+    applyOverrides(input, options, v.info);
+    return v;
+}
+
+openvdb::FloatGrid::Ptr convertOpened(const std::string& input, OpenedVolume& volume, const RawConvertOptions& options,
+                                      RawConvertStats* stats, std::chrono::steady_clock::time_point start);
+
+} // namespace
+
+RawVolumeInfo resolveVolumeInfo(const std::string& input, const RawConvertOptions& options)
+{
+    return openVolume(input, options).info;
 }
 
 openvdb::math::Transform::Ptr makeTransform(const RawVolumeInfo& info)
@@ -286,9 +323,18 @@ openvdb::math::Transform::Ptr makeTransform(const RawVolumeInfo& info)
 
 openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvertOptions& options, RawConvertStats* stats)
 {
-    openvdb::initialize();
     const auto start = std::chrono::steady_clock::now();
-    const RawVolumeInfo info = resolveVolumeInfo(input, options);
+    OpenedVolume volume = openVolume(input, options);
+    return convertOpened(input, volume, options, stats, start);
+}
+
+namespace {
+
+openvdb::FloatGrid::Ptr convertOpened(const std::string& input, OpenedVolume& volume, const RawConvertOptions& options,
+                                      RawConvertStats* stats, std::chrono::steady_clock::time_point start)
+{
+    openvdb::initialize();
+    const RawVolumeInfo& info = volume.info;
 
     ValueRules rules;
     rules.levelSet = options.gridClass == RawGridClass::LevelSet;
@@ -327,8 +373,11 @@ openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvert
     const bool plain = !rules.levelSet && !rules.scaled && !rules.clamped && rules.tolerance == 0;
     const LeafFn leafFn = leafFunction(info.type, vsize > 1 && info.byteOrder != hostByteOrder(), plain);
 
-    DataStream stream(info.dataFile, info.fileOffset, info.encoding, info.decodedSkip + info.dataBytes());
-    stream.skip(info.decodedSkip);
+    std::unique_ptr<DataStream> stream;
+    if (!volume.slices) {
+        stream = std::make_unique<DataStream>(info.dataFile, info.fileOffset, info.encoding, info.decodedSkip + info.dataBytes());
+        stream->skip(info.decodedSkip);
+    }
 
     const std::size_t tokens = static_cast<std::size_t>(std::max(1, options.readAhead) + 1);
     std::vector<std::vector<unsigned char>> buffers(std::min<uint64_t>(tokens, slabCount));
@@ -354,7 +403,8 @@ openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvert
                 const uint64_t rows = std::min<uint64_t>(kLeafDim, Z - s * kLeafDim);
                 const uint64_t bytes = X * Y * rows * vsize;
                 if (buf.size() < bytes) buf.resize(static_cast<std::size_t>(bytes));
-                stream.readExact(buf.data(), static_cast<std::size_t>(bytes));
+                if (volume.slices) volume.slices->readSlices(s * kLeafDim, rows, buf.data());
+                else stream->readExact(buf.data(), static_cast<std::size_t>(bytes));
                 return {s, &buf};
             }) &
             tbb::make_filter<SlabToken, void>(
@@ -394,6 +444,7 @@ openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvert
 
     if (stats) {
         stats->info = info;
+        stats->source = volume.slices ? volume.slices->describe() : std::string();
         stats->activeVoxels = tree.activeVoxelCount();
         stats->leafCount = tree.leafCount();
         stats->tileCount = tree.activeTileCount();
@@ -404,11 +455,13 @@ openvdb::FloatGrid::Ptr convertToGrid(const std::string& input, const RawConvert
     return grid;
 }
 
+} // namespace
+
 RawConvertStats convertRawToVdb(const std::string& input, const std::string& output, const RawConvertOptions& options)
 {
     const auto start = std::chrono::steady_clock::now();
-    // Header first: a bad input is reported before anything is created.
-    resolveVolumeInfo(input, options);
+    // Header first (every slice's, for an image stack): a bad input is reported before anything is created.
+    OpenedVolume volume = openVolume(input, options);
 
     // A .vdb needs a seekable regular file; renaming a temporary file over a device would replace it.
     struct stat st {};
@@ -430,7 +483,7 @@ RawConvertStats convertRawToVdb(const std::string& input, const std::string& out
     }
 
     RawConvertStats stats;
-    auto grid = convertToGrid(input, options, &stats);
+    auto grid = convertOpened(input, volume, options, &stats, start);
     grid->setSaveFloatAsHalf(options.half);
     try {
         std::ofstream os(guard.path, std::ios::out | std::ios::binary | std::ios::trunc);

@@ -1,5 +1,5 @@
-// Streaming conversion of a dense volume (raw, NRRD, MetaImage, NIfTI-1; see raw_header.h) into a
-// sparse openvdb::FloatGrid.
+// Streaming conversion of a dense volume (raw, NRRD, MetaImage, NIfTI-1; see raw_header.h) or an image
+// stack (a DICOM series or a TIFF stack; see slice_source.h) into a sparse openvdb::FloatGrid.
 //
 // The input is read in z slabs one leaf thick (8 z rows of X*Y values), a few slabs in flight at a
 // time, so peak memory is a few slabs plus the output tree whatever the input size. Each slab is
@@ -23,6 +23,7 @@
 #pragma once
 
 #include "raw_header.h"
+#include "slice_source.h"
 
 #include <openvdb/openvdb.h>
 
@@ -44,6 +45,8 @@ struct RawConvertOptions {
     /// 0,0,0 for raw files). With spacing overridden the header's axis directions are kept.
     std::optional<std::array<double, 3>> spacing;
     std::optional<std::array<double, 3>> origin;
+    /// DICOM folder holding several series: the SeriesInstanceUID to convert (default: the only one).
+    std::string series;
     /// Grid name; empty (default) means "density" for fog volumes and "surface" for level sets.
     std::string name;
     /// Grid class written to the file: fog volume (default) or level set.
@@ -68,6 +71,7 @@ struct RawConvertOptions {
 
 struct RawConvertStats {
     RawVolumeInfo info;             ///< what was read (after overrides)
+    std::string source;             ///< image stacks: what was read ("DICOM series 1.2.3, 40 files, ..."), else empty
     uint64_t activeVoxels = 0;      ///< in the final tree (tiles counted voxel by voxel)
     uint64_t leafCount = 0;         ///< leaf nodes in the final tree
     uint64_t tileCount = 0;         ///< active tiles in the final tree (any level)
@@ -76,7 +80,8 @@ struct RawConvertStats {
     uint64_t inputBytes = 0;        ///< decoded voxel bytes read
 };
 
-/// Reads the header (or takes the raw layout), applies the spacing/origin overrides and validates.
+/// Reads the header (or takes the raw layout; for an image stack, every slice's header), applies the
+/// spacing/origin overrides and validates.
 RawVolumeInfo resolveVolumeInfo(const std::string& input, const RawConvertOptions& options);
 
 /// The grid's transform for a volume: voxel (i,j,k) -> origin + direction * (spacing ∘ ijk).

@@ -740,6 +740,8 @@ const char* formatName(VolumeFormat f)
     case VolumeFormat::Nrrd: return "NRRD";
     case VolumeFormat::MetaImage: return "MetaImage";
     case VolumeFormat::Nifti: return "NIfTI-1";
+    case VolumeFormat::Dicom: return "DICOM";
+    case VolumeFormat::Tiff: return "TIFF";
     }
     return "?";
 }
@@ -785,6 +787,8 @@ RawVolumeInfo readVolumeInfo(const std::string& path, const RawLayout& layout)
     case VolumeFormat::MetaImage: info = readMetaImage(path); break;
     case VolumeFormat::Nifti: info = readNifti(path); break;
     case VolumeFormat::Raw: info = readRaw(path, layout); break;
+    case VolumeFormat::Dicom:
+    case VolumeFormat::Tiff: throw RawInputError(path, "image stacks are read through slice_source.h");  // never detected here
     }
 
     for (int i = 0; i < 3; ++i) {

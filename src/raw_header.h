@@ -35,7 +35,7 @@ private:
 enum class ScalarType { U8, I8, U16, I16, U32, I32, F32, F64 };
 enum class ByteOrder { Little, Big };
 enum class Encoding { Raw, Gzip, Zlib };
-enum class VolumeFormat { Raw, Nrrd, MetaImage, Nifti };
+enum class VolumeFormat { Raw, Nrrd, MetaImage, Nifti, Dicom, Tiff };
 
 /// Size of one value in bytes.
 std::size_t scalarSize(ScalarType t);

@@ -1,4 +1,5 @@
-// raw2vdb: converts a dense volume (raw, NRRD, MetaImage, NIfTI-1) into an OpenVDB .vdb file.
+// raw2vdb: converts a dense volume (raw, NRRD, MetaImage, NIfTI-1) or an image stack (a folder holding a
+// DICOM series or single-page TIFFs, a multi-page TIFF) into an OpenVDB .vdb file.
 // Thin front end over raw_converter.h: parse the command line, one library call, one error line.
 // Exit codes: 0 success, 1 bad input or unwritable output, 2 usage error.
 #include "cli_numbers.h"
@@ -52,18 +53,21 @@ int main(int argc, char** argv)
 {
     using namespace vdb_isosimp;
     CLI::App app{"raw2vdb: convert a dense volume (raw, NRRD .nrrd/.nhdr, MetaImage .mhd/.mha, NIfTI-1 .nii/.nii.gz) "
+                 "or an image stack (a FOLDER of DICOM files of one series or of single-page TIFFs, a multi-page .tif) "
                  "into an OpenVDB float grid (.vdb), streaming slab by slab."};
-    std::string input, output, dims, type, endian = "little", spacing, origin, name, gridClass = "fog", clamp;
+    std::string input, output, dims, type, endian = "little", spacing, origin, name, gridClass = "fog", clamp, series;
     uint64_t skip = 0;
     double background = 0;
     double tolerance = 0;
     bool half = false, quiet = false;
-    app.add_option("input", input, "input volume; the format follows the extension, anything else is raw")->required();
+    app.add_option("input", input, "input volume: a folder (DICOM series or TIFF slices), a .tif/.tiff stack, or a file whose "
+                                   "extension names its format (anything else is raw)")->required();
     app.add_option("-o,--output", output, "output .vdb file (written to OUT.tmp.<pid>, renamed on success)")->required();
     app.add_option("--dims", dims, "raw only: sizes X,Y,Z (X fastest)");
     app.add_option("--type", type, "raw only: u8|i8|u16|i16|u32|i32|f32|f64");
     app.add_option("--endian", endian, "raw only: byte order (default little)")->check(CLI::IsMember({"little", "big"}));
-    app.add_option("--spacing", spacing, "voxel size SX,SY,SZ (default: the header's, or 1,1,1)");
+    app.add_option("--spacing", spacing, "voxel size SX,SY,SZ (default: the header's or the images', or 1,1,1)");
+    app.add_option("--series", series, "DICOM folder with several series: the SeriesInstanceUID to convert");
     app.add_option("--origin", origin, "centre of voxel 0,0,0 OX,OY,OZ (default: the header's, or 0,0,0)");
     app.add_option("--skip", skip, "raw only: bytes to skip before the data (default 0)");
     app.add_option("--name", name, "grid name (default density, or surface for level sets)");
@@ -112,6 +116,7 @@ int main(int argc, char** argv)
     opt.layout.byteOrder = endian == "big" ? ByteOrder::Big : ByteOrder::Little;
     opt.layout.skip = skip;
     opt.name = name;
+    opt.series = series;
     opt.gridClass = gridClass == "levelset" ? RawGridClass::LevelSet : RawGridClass::Fog;
     if (backgroundOpt->count() > 0) opt.background = background;
     opt.tolerance = tolerance;
@@ -144,10 +149,17 @@ int main(int argc, char** argv)
         if (bar) std::fprintf(stderr, "\r\033[K");
         if (!quiet) {
             const auto& d = s.info.dims;
-            std::printf("raw2vdb: %s -> %s: %llux%llux%llu %s (%s, %s encoding), %llu active voxels, %llu leaves, %llu tiles, %.2f s, peak %s\n",
+            std::string what;
+            if (s.source.empty()) {
+                what = std::string(formatName(s.info.format)) + ", " + encodingName(s.info.encoding) + " encoding";
+            } else {
+                char voxel[96];
+                std::snprintf(voxel, sizeof voxel, ", voxel %gx%gx%g", s.info.spacing[0], s.info.spacing[1], s.info.spacing[2]);
+                what = s.source + voxel;
+            }
+            std::printf("raw2vdb: %s -> %s: %llux%llux%llu %s (%s), %llu active voxels, %llu leaves, %llu tiles, %.2f s, peak %s\n",
                         input.c_str(), output.c_str(), static_cast<unsigned long long>(d[0]), static_cast<unsigned long long>(d[1]),
-                        static_cast<unsigned long long>(d[2]), scalarName(s.info.type), formatName(s.info.format),
-                        encodingName(s.info.encoding), static_cast<unsigned long long>(s.activeVoxels),
+                        static_cast<unsigned long long>(d[2]), scalarName(s.info.type), what.c_str(), static_cast<unsigned long long>(s.activeVoxels),
                         static_cast<unsigned long long>(s.leafCount), static_cast<unsigned long long>(s.tileCount), s.seconds,
                         mib(s.peakRssBytes).c_str());
         }
