@@ -176,6 +176,7 @@ struct SeriesSpec {
     double spacingRow = 0.7, spacingCol = 0.4;  // PixelSpacing: between rows (y), between columns (x)
     double step = 1.25;                         // between slices along the normal
     int bits = 16;
+    int bitsStored = 0;  // 0: all bits; 12: values in the low 12 bits, junk above (overlay bits of old scanners)
     bool isSigned = true;
     double slope = 1, intercept = -1024;
     std::string series = "1.2.826.0.1.3680043.9.7777.1";
@@ -198,6 +199,7 @@ Vec3 slicePosition(const SeriesSpec& s, int k)
 int storedValue(int x, int y, int k, const SeriesSpec& s)
 {
     const int p = (x * 7 + y * 13 + k * 29) % 251;
+    if (s.bitsStored == 12) return s.isSigned ? (p - 100) * 13 : p * 16;
     if (s.bits == 8) return s.isSigned ? p / 2 - 60 : p;
     return s.isSigned ? (p - 100) * 37 : p * 211;
 }
@@ -234,8 +236,9 @@ void writeDicomSlice(const fs::path& path, const SeriesSpec& s, int k, const Vec
     d->putAndInsertUint16(DCM_SamplesPerPixel, 1);
     d->putAndInsertString(DCM_PhotometricInterpretation, "MONOCHROME2");
     d->putAndInsertUint16(DCM_BitsAllocated, static_cast<Uint16>(s.bits));
-    d->putAndInsertUint16(DCM_BitsStored, static_cast<Uint16>(s.bits));
-    d->putAndInsertUint16(DCM_HighBit, static_cast<Uint16>(s.bits - 1));
+    const int stored = s.bitsStored ? s.bitsStored : s.bits;
+    d->putAndInsertUint16(DCM_BitsStored, static_cast<Uint16>(stored));
+    d->putAndInsertUint16(DCM_HighBit, static_cast<Uint16>(stored - 1));
     d->putAndInsertUint16(DCM_PixelRepresentation, s.isSigned ? 1 : 0);
     const std::size_t n = static_cast<std::size_t>(s.rows) * s.cols;
     if (s.bits == 8) {
@@ -246,7 +249,11 @@ void writeDicomSlice(const fs::path& path, const SeriesSpec& s, int k, const Vec
     } else {
         std::vector<Uint16> px(n);
         for (int y = 0; y < s.rows; ++y)
-            for (int x = 0; x < s.cols; ++x) px[std::size_t(y) * s.cols + x] = static_cast<Uint16>(storedValue(x, y, k, s));
+            for (int x = 0; x < s.cols; ++x) {
+                Uint16 w = static_cast<Uint16>(storedValue(x, y, k, s));
+                if (s.bitsStored == 12) w = static_cast<Uint16>((w & 0x0FFF) | (s.isSigned ? 0 : 0xA000));  // no sign bits / junk
+                px[std::size_t(y) * s.cols + x] = w;
+            }
         d->putAndInsertUint16Array(DCM_PixelData, px.data(), static_cast<unsigned long>(n));
     }
     if (DcmXfer(s.xfer).isEncapsulated()) {
@@ -442,6 +449,20 @@ TEST(Dicom, EveryStoredTypeAndRescale)
             SCOPED_TRACE("bits " + std::to_string(bits) + (isSigned ? " signed" : " unsigned"));
             expectSeriesGrid(*grid, s);
         }
+}
+
+TEST(Dicom, TwelveBitsStoredAreMaskedAndSignExtended)
+{
+    for (bool isSigned : {false, true}) {
+        TempDir dir;
+        SeriesSpec s;
+        s.bitsStored = 12;
+        s.isSigned = isSigned;
+        s.slices = 9;
+        writeSeries(dir / "s", s);
+        SCOPED_TRACE(isSigned ? "signed 12 of 16 bits, upper bits clear" : "unsigned 12 of 16 bits, junk in the upper bits");
+        expectSeriesGrid(*convert(dir / "s"), s);
+    }
 }
 
 TEST(Dicom, SlicesShuffledOnDiskAreSortedByPosition)
