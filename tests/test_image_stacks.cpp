@@ -227,7 +227,7 @@ void writeDicomSlice(const fs::path& path, const SeriesSpec& s, int k, const Vec
     d->putAndInsertString(DCM_InstanceNumber, std::to_string(k + 1).c_str());
     d->putAndInsertString(DCM_ImagePositionPatient, ds3(ipp).c_str());
     d->putAndInsertString(DCM_ImageOrientationPatient, (ds3(s.row) + "\\" + ds3(s.col)).c_str());
-    d->putAndInsertString(DCM_PixelSpacing, (ds(s.spacingRow) + "\\" + ds(s.spacingCol)).c_str());
+    if (s.spacingRow > 0) d->putAndInsertString(DCM_PixelSpacing, (ds(s.spacingRow) + "\\" + ds(s.spacingCol)).c_str());
     d->putAndInsertString(DCM_SliceThickness, ds(s.step).c_str());
     d->putAndInsertString(DCM_RescaleSlope, ds(s.slope).c_str());
     d->putAndInsertString(DCM_RescaleIntercept, ds(s.intercept).c_str());
@@ -767,6 +767,18 @@ TEST(StackBadInput, DicomUnevenAndDuplicatePositions)
     writeSeries(dir / "dup", s);
     writeDicomSlice(dir / "dup" / "IM6b", s, 6, slicePosition(s, 6));
     expectFailure(dir, dir / "dup", {}, 1, {"same position"}, dir / "dup");
+}
+
+TEST(StackBadInput, DicomWithoutPixelSpacingNeedsTheOption)
+{
+    TempDir dir;
+    SeriesSpec s;
+    s.spacingRow = 0;  // no PixelSpacing (0028,0030)
+    writeSeries(dir / "nops", s);
+    expectFailure(dir, dir / "nops", {}, 1, {"PixelSpacing", "--spacing"}, dir / "nops");
+    const auto r = raw2vdb({(dir / "nops").string(), "-o", (dir / "o.vdb").string(), "--spacing", "0.5,0.5,2", "-q"}, dir.path);
+    ASSERT_EQ(r.code, 0) << r.err;
+    expectNear3(readVdb(dir / "o.vdb")->voxelSize(), {{0.5, 0.5, 2}}, 1e-9, "--spacing");
 }
 
 TEST(StackBadInput, DicomUndecodableTransferSyntaxIsNamed)
