@@ -36,25 +36,12 @@ py::array_t<T> toArray(std::vector<std::array<T, N>>&& v)
 py::dict reportDict(const Report& r, const Options& o)
 {
     py::dict d;
-    d["input"] = r.file;
-    d["grid"] = r.grid;
-    d["value_type"] = r.valueType;
-    d["grid_class"] = r.gridClass;
-    d["iso"] = r.iso;
-    d["ratio"] = r.ratio;
-    d["batch"] = o.batchFaces;
-    d["blocks"] = r.blocks;
-    d["faces_full"] = r.facesFull;
-    d["faces_target"] = r.facesTarget;
-    d["faces_out"] = r.facesOut;
-    d["verts_out"] = r.vertsOut;
-    d["decimations"] = r.decimations;
-    d["max_intermediate_faces"] = r.maxIntermediateFaces;
-    d["max_uncontractible_faces"] = r.maxUncontractibleFaces;
-    d["seconds"] = r.seconds;
-    d["seconds_slabs"] = r.secondsSlabs;
-    d["seconds_final"] = r.secondsFinal;
-    d["peak_rss_mb"] = r.peakRssMb;
+    for (const ReportField& f : reportFields(r, o)) {
+        const char* key = f.name.c_str();
+        if (f.kind == ReportField::Kind::Text) d[key] = f.text;
+        else if (f.kind == ReportField::Kind::Integer) d[key] = f.integer;
+        else d[key] = f.real;
+    }
     return d;
 }
 

@@ -13,7 +13,7 @@
 #include "run_stats.h"
 #include "volume_reader.h"
 
-#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -242,9 +242,6 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
 {
     Stopwatch clock;
     checkOptions(opt);
-    std::unique_ptr<tbb::global_control> threads;
-    if (opt.threads > 0)
-        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, opt.threads);
 
     // Open.
     std::unique_ptr<Volume> vol = open();
@@ -383,7 +380,7 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     // order as each is done (and all below it have joined); the seam it closes is finalised and
     // decimated then, while the next slabs run. A slab waiting to join holds its seams open, so no
     // more slabs start than can run: open seams hold full-resolution faces and grow with the input.
-    const size_t running = std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    const size_t running = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
     size_t nextSlab = 0;
     const double slabsStart = clock.seconds();
     tbb::parallel_pipeline(
@@ -443,7 +440,11 @@ Result simplifyVolume(const std::function<std::unique_ptr<Volume>()>& open, cons
 {
     // Every input error names the input, whichever stage found it.
     try {
-        return runPipeline(open, name, opt, progress);
+        // A thread count applies to this run only: an arena of its own, not a process-wide limit
+        // that would hold every other TBB user of a host (Blender, Houdini, Python) while it runs.
+        if (opt.threads <= 0) return runPipeline(open, name, opt, progress);
+        tbb::task_arena arena(opt.threads);
+        return arena.execute([&] { return runPipeline(open, name, opt, progress); });
     } catch (const InputError& e) {
         const std::string what = e.what();
         if (what.compare(0, name.size() + 1, name + ":") == 0) throw;

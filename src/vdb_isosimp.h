@@ -86,6 +86,20 @@ struct Report {
     std::vector<DecimationRecord> trace;
 };
 
+// One field of the report, named as the program's --report JSON and the Python dict name it.
+struct ReportField {
+    enum class Kind { Text, Integer, Real };
+    std::string name;
+    Kind kind = Kind::Text;
+    std::string text;
+    uint64_t integer = 0;
+    double real = 0.0;
+};
+
+// Every field of a run's report, in the order --report writes them; the one list the program's JSON
+// and the Python dict are both made from. `options` gives the batch size the run used.
+std::vector<ReportField> reportFields(const Report& report, const Options& options);
+
 // Progress and cancellation, called from the in-order stage (never concurrently).
 class Progress {
 public:

@@ -8,7 +8,8 @@ work=$(mktemp -d "${TMPDIR:-/tmp}/vdb_isosimp_install.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
 cmake --install "$build" --prefix "$work/prefix" > "$work/install.log" || { cat "$work/install.log"; exit 1; }
-for f in include/vdb_isosimp/vdb_isosimp.h lib/cmake/vdb_isosimp/vdb_isosimpConfig.cmake bin/vdb_isosimp; do
+for f in include/vdb_isosimp/vdb_isosimp.h lib/cmake/vdb_isosimp/vdb_isosimpConfig.cmake \
+         bin/vdb_isosimp bin/raw2vdb bin/mesh_stats bin/mesh_error; do
   [ -e "$work/prefix/$f" ] || { echo "not installed: $f"; exit 1; }
 done
 # The consumer sees the installed prefix only: not the source tree, not the build tree.
@@ -42,5 +43,9 @@ v, f, r = vdb_isosimp.simplify(sys.argv[1], ratio=0.1)
 print(len(f))" "$src/examples/data/torus_levelset.vdb")
   [ "$out3" = "$faces" ] || { echo "installed Python module: $out3 faces, program: $faces"; exit 1; }
   echo "installed Python module in $dir: $out3 faces"
+done
+# Every installed program runs from the prefix (its library found through its RPATH).
+for p in vdb_isosimp raw2vdb mesh_stats mesh_error; do
+  "$work/prefix/bin/$p" --help > /dev/null || { echo "installed $p does not run"; exit 1; }
 done
 echo "install consumer test passed"

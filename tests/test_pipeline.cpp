@@ -13,8 +13,15 @@
 #include <openvdb/tools/LevelSetSphere.h>
 
 #include <gtest/gtest.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <future>
+#include <thread>
 #include <functional>
 #include <cstdio>
 #include <cstdlib>
@@ -232,6 +239,52 @@ TEST(Pipeline, SameOutputForAnyThreadCount)
     ASSERT_EQ(a.mesh.triangles.size(), b.mesh.triangles.size());
     EXPECT_TRUE(a.mesh.points == b.mesh.points);
     EXPECT_TRUE(a.mesh.triangles == b.mesh.triangles);
+}
+
+// A thread count limits one run, not the process: while a run with threads = 1 is under way inside
+// an arena of 2 (held at its first progress report), another arena of 2 still gets two threads
+// working at once. A process-wide limit (tbb::global_control) would leave that arena one thread.
+TEST(Pipeline, ThreadCountLimitsTheRunOnly)
+{
+    struct Hold : Progress {
+        std::promise<void> started;
+        std::shared_future<void> release;
+        bool first = true;
+        bool update(double, uint64_t) override
+        {
+            if (first) {
+                first = false;
+                started.set_value();
+                release.wait();
+            }
+            return true;
+        }
+    } hold;
+    std::promise<void> releaseRun;
+    hold.release = releaseRun.get_future().share();
+    std::future<void> started = hold.started.get_future();
+    std::thread run([&] {
+        tbb::task_arena outer(2);
+        outer.execute([&] { simplifyFile(sphereFile(), ratioOptions(0.2, 1), &hold); });
+    });
+    ASSERT_EQ(started.wait_for(std::chrono::seconds(60)), std::future_status::ready);
+
+    tbb::task_arena other(2);
+    std::atomic<int> inside{0};
+    std::atomic<bool> together{false};
+    other.execute([&] {
+        EXPECT_EQ(tbb::this_task_arena::max_concurrency(), 2);
+        tbb::parallel_for(tbb::blocked_range<int>(0, 2, 1), [&](const tbb::blocked_range<int>&) {
+            ++inside;
+            // Both halves in flight at once, or 5 s pass.
+            const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+            while (inside.load() < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+            if (inside.load() == 2) together = true;
+        });
+    });
+    releaseRun.set_value();
+    run.join();
+    EXPECT_TRUE(together.load()) << "another arena ran on one thread while a threads = 1 run was under way";
 }
 
 // Acceptance on organic volumes (a sphere, CT-like noise, integer CT-like data with many voxels exactly

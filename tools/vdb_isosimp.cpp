@@ -162,29 +162,18 @@ std::string reportJson(const Report& r, const std::string& output, const Options
 {
     std::ostringstream j;
     j.precision(10);
-    j << "{\n"
-      << "  \"input\": " << jsonString(r.file) << ",\n"
-      << "  \"output\": " << jsonString(output) << ",\n"
-      << "  \"grid\": " << jsonString(r.grid) << ",\n"
-      << "  \"value_type\": \"" << r.valueType << "\",\n"
-      << "  \"grid_class\": \"" << r.gridClass << "\",\n"
-      << "  \"iso\": " << r.iso << ",\n"
-      << "  \"ratio\": " << r.ratio << ",\n"
-      << "  \"batch\": " << o.batchFaces << ",\n"
-      << "  \"blocks\": " << r.blocks << ",\n"
-      << "  \"faces_full\": " << r.facesFull << ",\n"
-      << "  \"faces_target\": " << r.facesTarget << ",\n"
-      << "  \"faces_out\": " << r.facesOut << ",\n"
-      << "  \"verts_out\": " << r.vertsOut << ",\n"
-      << "  \"decimations\": " << r.decimations << ",\n"
-      << "  \"max_intermediate_faces\": " << r.maxIntermediateFaces << ",\n"
-      << "  \"max_uncontractible_faces\": " << r.maxUncontractibleFaces << ",\n"
-      << "  \"components_dropped\": " << r.componentsDropped << ",\n"
-      << "  \"seconds\": " << r.seconds << ",\n"
-      << "  \"seconds_slabs\": " << r.secondsSlabs << ",\n"
-      << "  \"seconds_final\": " << r.secondsFinal << ",\n"
-      << "  \"peak_rss_mb\": " << r.peakRssMb << "\n"
-      << "}\n";
+    j << "{\n";
+    const std::vector<ReportField> fields = reportFields(r, o);
+    for (size_t i = 0; i < fields.size(); ++i) {
+        const ReportField& f = fields[i];
+        j << "  \"" << f.name << "\": ";
+        if (f.kind == ReportField::Kind::Text) j << jsonString(f.text);
+        else if (f.kind == ReportField::Kind::Integer) j << f.integer;
+        else j << f.real;
+        j << (i + 1 < fields.size() ? ",\n" : "\n");
+        if (f.name == "input") j << "  \"output\": " << jsonString(output) << ",\n";
+    }
+    j << "}\n";
     return j.str();
 }
 

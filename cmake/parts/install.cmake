@@ -17,7 +17,7 @@ install(FILES
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/vdb_isosimp)
 # The library is shared when BUILD_SHARED_LIBS is on (Debian's FindOpenVDB turns it on): installed
 # programs find it beside them through a relative RPATH.
-foreach(tool vdb_isosimp raw2vdb)
+foreach(tool vdb_isosimp raw2vdb mesh_stats mesh_error)
   if(TARGET ${tool})
     set_target_properties(${tool} PROPERTIES INSTALL_RPATH "$ORIGIN/../${CMAKE_INSTALL_LIBDIR}")
     install(TARGETS ${tool} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
