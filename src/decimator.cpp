@@ -271,10 +271,7 @@ void Decimator::addBlock(const BlockMesh& block)
     for (const auto& t : block.triangles) {
         const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
         newFace(v);
-        // The face's plane quadric, and its anchor, added to its three corners. Every face counts once,
-        // whatever its area: Marching Cubes cuts the surface into small faces where it bends between
-        // grid planes and into large ones where it is flat, so area weights would let the flat parts
-        // outvote the detail (as in CGAL's Garland-Heckbert policies; docs/fidelity.md measures both).
+        // Area-weighted plane quadric of the face, and its anchor, added to its three corners.
         const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
         const double len = std::sqrt(dot(n, n));
         if (len > 0) {
@@ -282,8 +279,8 @@ void Decimator::addBlock(const BlockMesh& block)
             const double d = -dot(u, mGeom[v[0]].p);
             for (uint32_t x : v) {
                 // The plane around each corner (it passes through all three, up to rounding).
-                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), 1.0);
-                mGeom[x].q.addPoint(kAnchorWeight);
+                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
+                mGeom[x].q.addPoint(kAnchorWeight * 0.5 * len);
             }
         }
     }

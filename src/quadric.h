@@ -11,7 +11,7 @@ struct Quadric {
     // xx xy xz xw yy yz yw zz zw ww
     std::array<double, 10> q{};
 
-    // Adds the plane n·x + d = 0 (n unit) with weight w.
+    // Adds the plane n·x + d = 0 (n unit) with weight w (the face's area, so big faces count more).
     void addPlane(const std::array<double, 3>& n, double d, double w)
     {
         const double a = n[0], b = n[1], c = n[2];
