@@ -1,6 +1,7 @@
 // Tests of raw2vdb's image-stack inputs: DICOM series (written here with DCMTK) and TIFF stacks (written
 // here with libtiff), converted by the library and by the program. Every slice's values come from a
 // known formula, so each test compares voxel by voxel with what was written.
+#include "program_runs.h"
 #include "raw_converter.h"
 #include "slice_source.h"
 
@@ -33,79 +34,9 @@
 
 namespace fs = std::filesystem;
 using namespace vdb_isosimp;
+using namespace vdb_isosimp::testing;
 
 namespace {
-
-// ---------------------------------------------------------------------------------------------
-// Scratch folders and the program
-
-struct TempDir {
-    fs::path path;
-    TempDir()
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        path = fs::temp_directory_path() /
-               ("raw2vdb_stacks_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir() { fs::remove_all(path); }
-    fs::path operator/(const std::string& name) const { return path / name; }
-};
-
-std::string readFile(const fs::path& p)
-{
-    std::ifstream f(p, std::ios::binary);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-}
-
-void writeFile(const fs::path& p, const std::string& bytes)
-{
-    std::ofstream f(p, std::ios::binary);
-    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-std::string shellQuote(const std::string& s)
-{
-    std::string q = "'";
-    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-struct RunResult {
-    int code = -1;
-    std::string out, err;
-};
-
-RunResult raw2vdb(const std::vector<std::string>& args, const fs::path& scratch)
-{
-    std::string cmd = shellQuote(RAW2VDB_EXE);
-    for (const auto& a : args) cmd += " " + shellQuote(a);
-    const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-    cmd += " > " + shellQuote(out.string()) + " 2> " + shellQuote(err.string()) + " < /dev/null";
-    const int status = std::system(cmd.c_str());
-    RunResult r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = readFile(out);
-    r.err = readFile(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
-}
-
-openvdb::FloatGrid::Ptr readVdb(const fs::path& p)
-{
-    openvdb::initialize();
-    openvdb::io::File file(p.string());
-    file.open();
-    auto grids = file.getGrids();
-    file.close();
-    EXPECT_EQ(grids->size(), 1u);
-    if (grids->empty()) return nullptr;
-    return openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
-}
 
 /// The program fails on `input` with `code`, one line on stderr naming `fileInMessage` and holding every
 /// word of `mustContain`, nothing on stdout, and nothing left in the output folder.

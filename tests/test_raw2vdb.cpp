@@ -1,5 +1,6 @@
 // Tests of the dense-volume converter (raw2vdb): header parsing, streaming conversion, the program's
 // behaviour on good and bad input. Every fixture is written here from a known formula.
+#include "program_runs.h"
 #include "raw_converter.h"
 #include "raw_header.h"
 
@@ -23,6 +24,7 @@
 
 namespace fs = std::filesystem;
 using namespace vdb_isosimp;
+using namespace vdb_isosimp::testing;
 
 namespace {
 
@@ -95,21 +97,6 @@ std::string volumeBytes(ScalarType t, ByteOrder bo, const std::array<uint64_t, 3
 std::string volumeBytes(ScalarType t, ByteOrder bo)
 {
     return volumeBytes(t, bo, kDims, [t](int x, int y, int z) { return formula(x, y, z, t); });
-}
-
-void writeFile(const fs::path& p, const std::string& bytes)
-{
-    std::ofstream f(p, std::ios::binary);
-    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    ASSERT_TRUE(f.good()) << p;
-}
-
-std::string readFile(const fs::path& p)
-{
-    std::ifstream f(p, std::ios::binary);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
 }
 
 /// gzip (windowBits 15+16) or zlib (15) compression.
@@ -257,21 +244,6 @@ std::string niftiBytes(ScalarType t, ByteOrder bo, const Geometry& g, const Nift
     return h + data;
 }
 
-/// A fresh directory for one test, removed at the end.
-struct TempDir {
-    fs::path path;
-    TempDir()
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        path = fs::temp_directory_path() /
-               ("raw2vdb_test_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir() { fs::remove_all(path); }
-    fs::path operator/(const std::string& name) const { return path / name; }
-};
-
 std::vector<std::string> listDir(const fs::path& dir)
 {
     std::vector<std::string> names;
@@ -280,47 +252,6 @@ std::vector<std::string> listDir(const fs::path& dir)
     return names;
 }
 
-struct RunResult {
-    int code = -1;
-    std::string out, err;
-};
-
-std::string shellQuote(const std::string& s)
-{
-    std::string q = "'";
-    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-RunResult runProgram(const std::string& exe, const std::vector<std::string>& args, const fs::path& scratch)
-{
-    std::string cmd = shellQuote(exe);
-    for (const auto& a : args) cmd += " " + shellQuote(a);
-    const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-    cmd += " > " + shellQuote(out.string()) + " 2> " + shellQuote(err.string()) + " < /dev/null";
-    const int status = std::system(cmd.c_str());
-    RunResult r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = readFile(out);
-    r.err = readFile(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
-}
-
-RunResult raw2vdb(const std::vector<std::string>& args, const fs::path& scratch) { return runProgram(RAW2VDB_EXE, args, scratch); }
-
-openvdb::FloatGrid::Ptr readVdb(const fs::path& p)
-{
-    openvdb::initialize();
-    openvdb::io::File file(p.string());
-    file.open();
-    auto grids = file.getGrids();
-    file.close();
-    EXPECT_EQ(grids->size(), 1u);
-    if (grids->empty()) return nullptr;
-    return openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
-}
 
 /// Every voxel of the volume equals `value(x,y,z)` (exactly, or within `tol`) and is active iff it
 /// differs from the background 0; nothing outside the volume is active.
