@@ -10,6 +10,7 @@
 // (z, y, x) of their origin, without duplicates: the order modifiability.h relies on.
 #pragma once
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -18,6 +19,11 @@
 namespace vdb_isosimp {
 
 using BlockOrigin = std::array<int32_t, 3>;
+
+// Slabs: runs of whole block layers, each extracted and decimated on its own and joined in order by
+// the pipeline; the memory estimate counts their open seams. A constant, so that the output never
+// depends on the number of threads (docs/perf.md measures 4, 8 and 16).
+constexpr size_t kPipelineSlabs = 8;
 
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);

@@ -1,5 +1,5 @@
 #include "input_checks.h"
-#include "pipeline_internal.h"
+#include "block_order.h"
 
 #include "edge_key.h"
 #include "errors.h"

@@ -9,12 +9,6 @@
 
 namespace vdb_isosimp {
 
-// Slabs (runs of whole block layers) processed independently, each joining slab 0's mesh in order
-// (pipeline.cpp). Fixed, so that the output never depends on the number of threads. Smaller slabs
-// decimate faster (smaller queues and meshes): at 448^3 on 2 cores, 8 beat 4 by 9% at R = 0.02 and
-// tied at R = 0.2; 16 lost 4% at R = 0.2 (more seams).
-constexpr size_t kPipelineSlabs = 8;
-
 // The whole pipeline on the volume `open` returns (called once, after the options are checked):
 // `name` is what Report::file holds and what every InputError / EmptySurfaceError message starts
 // with. simplifyFile(path) is simplifyVolume([&] { return Volume::open(path, o.gridName); }, path, ...);
