@@ -154,6 +154,16 @@ struct FileEntries {
 
 void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids, FileEntries& out);
 
+// A grid descriptor's names (unique name, tree type, instance parent), as every layout stores them
+// before the grid's offsets.
+bool readDescriptor(BoundedReader& in, GridEntry& e)
+{
+    if (!in.string(&e.uniqueName, 1 << 16) || !in.string(&e.type) || !in.string(&e.parent, 1 << 16)) return false;
+    e.plain = e.uniqueName.substr(0, e.uniqueName.find('\x1e'));
+    e.name = printable(e.plain);
+    return true;
+}
+
 // Sizes of the metadata values OpenVDB reads as a fixed number of bytes whatever the stored size says
 // (a stored size that disagrees would shift every read after it).
 uint64_t fixedMetadataSize(const std::string& type)
@@ -417,11 +427,8 @@ FileEntries readFileEntries(const std::string& path)
     for (int32_t g = 0; g < grids; ++g) {
         GridEntry e;
         int64_t gridPos = 0, blockPos = 0, endPos = 0;
-        if (!in.string(&e.uniqueName, 1 << 16) || !in.string(&e.type) || !in.string(&e.parent, 1 << 16) || !in.value(gridPos) ||
-            !in.value(blockPos) || !in.value(endPos))
+        if (!readDescriptor(in, e) || !in.value(gridPos) || !in.value(blockPos) || !in.value(endPos))
             damaged(path, "descriptor of grid " + std::to_string(g + 1) + " of " + std::to_string(grids) + " ends early");
-        e.plain = e.uniqueName.substr(0, e.uniqueName.find('\x1e'));
-        e.name = printable(e.plain);
         const uint64_t here = in.pos();
         const bool ordered = gridPos >= 0 && uint64_t(gridPos) >= here && endPos >= gridPos &&
                              (blockPos == 0 || (blockPos >= gridPos && blockPos <= endPos));
@@ -639,11 +646,8 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
         GridEntry e;
         int64_t unusedOffsets[3];
         in.setLimit(size);
-        if (!in.string(&e.uniqueName, 1 << 16) || !in.string(&e.type) || !in.string(&e.parent, 1 << 16) ||
-            !in.bytes(unusedOffsets, sizeof unusedOffsets))
+        if (!readDescriptor(in, e) || !in.bytes(unusedOffsets, sizeof unusedOffsets))
             damaged(path, "descriptor of grid " + std::to_string(g + 1) + " of " + std::to_string(grids) + " ends early");
-        e.plain = e.uniqueName.substr(0, e.uniqueName.find('\x1e'));
-        e.name = printable(e.plain);
         e.gridPos = in.pos();
         e.endPos = size;
         e.streamed = true;
