@@ -39,7 +39,9 @@ B=build; W=${FIDELITY_WORK:-$(mktemp -d)}; mkdir -p "$W"
   echo "RMS one-sided (full surface sampled onto the simplified one), Hausdorff symmetric. Each reference"
   echo "decimates our full-resolution surface in core to our face count (CGAL's stop predicate counts edges,"
   echo "so it ends 2 faces lower). *zero-area*: our faces of area <= 1e-12 x diagonal^2; *closed*: closed,"
-  echo "manifold, oriented and outward."
+  echo "manifold, oriented and outward. The Hausdorff distance also queries every vertex of a face with area"
+  echo "(not the vertices of a closed zero-area component, which a voxel exactly at the iso-value amid values"
+  echo "on one side makes: a point of the level set that carries no surface)."
   echo
   echo "## Hard surfaces (examples/test_volumes.h, ${N} voxels across, each also under a rotated, anisotropic transform)"
   echo
