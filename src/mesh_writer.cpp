@@ -1,4 +1,5 @@
 #include "mesh_writer.h"
+#include "temporary_file.h"
 
 #include <tiny_gltf.h>
 
@@ -371,7 +372,7 @@ void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& op
     const bool exists = ::stat(path.c_str(), &st) == 0;
     if (exists && S_ISDIR(st.st_mode)) throw OutputError(path + ": cannot create output file (" + std::strerror(EISDIR) + ")");
     const bool inPlace = exists && !S_ISREG(st.st_mode);
-    const std::string tmp = inPlace ? path : path + ".tmp" + std::to_string(::getpid());
+    const std::string tmp = inPlace ? path : temporaryPathFor(path);
     auto discard = [&] {
         if (!inPlace) std::remove(tmp.c_str());
     };

@@ -1,4 +1,5 @@
 #include "raw_converter.h"
+#include "temporary_file.h"
 
 #include <openvdb/io/Archive.h>
 #include <openvdb/io/File.h>
@@ -471,7 +472,7 @@ RawConvertStats convertRawToVdb(const std::string& input, const std::string& out
     }
 
     TempFileGuard guard;
-    guard.path = output + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+    guard.path = temporaryPathFor(output);
     {
         FILE* f = std::fopen(guard.path.c_str(), "wb");
         if (!f) {

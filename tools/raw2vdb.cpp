@@ -4,6 +4,7 @@
 // Exit codes: 0 success, 1 bad input or unwritable output, 2 usage error.
 #include "cli_numbers.h"
 #include "raw_converter.h"
+#include "temporary_file.h"
 
 #include <CLI/CLI.hpp>
 
@@ -139,7 +140,7 @@ int main(int argc, char** argv)
         };
     }
 
-    const std::string tempPath = output + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+    const std::string tempPath = vdb_isosimp::temporaryPathFor(output);
     if (tempPath.size() < sizeof gTempPath) {
         std::memcpy(gTempPath, tempPath.c_str(), tempPath.size() + 1);
         for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onSignal);

@@ -6,6 +6,7 @@
 #include "input_checks.h"
 #include "mesh_writer.h"
 #include "run_stats.h"
+#include "temporary_file.h"
 #include "vdb_isosimp.h"
 
 #include <CLI/CLI.hpp>
@@ -140,8 +141,6 @@ private:
     Progress* mBar;
 };
 
-std::string temporaryFor(const std::string& path) { return path + ".tmp" + std::to_string(::getpid()); }
-
 // Existing special files (FIFOs, devices such as /dev/stdout or /dev/full) are written in place: a
 // temporary file and a rename would replace the device node itself.
 bool isSpecialFile(const std::string& path)
@@ -200,7 +199,7 @@ void writeText(const std::string& path, const std::string& text)
         if (std::fclose(f) != 0 || bad) throw OutputError(path + ": cannot write report (" + std::strerror(bad ? err : errno) + ")");
         return;
     }
-    const std::string tmp = temporaryFor(path);
+    const std::string tmp = temporaryPathFor(path);
     {
         std::ofstream f(tmp, std::ios::binary);
         f << text;
@@ -228,7 +227,7 @@ void probeWritable(const std::string& path)
             return;
         }
     }
-    const std::string tmp = temporaryFor(path);
+    const std::string tmp = temporaryPathFor(path);
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
     std::fclose(f);
@@ -327,9 +326,9 @@ int main(int argc, char** argv)
     try {
         formatForPath(output, ascii);  // an unsupported extension fails before the long run
         probeWritable(output);
-        std::vector<std::string> temporaries{temporaryFor(output)};
+        std::vector<std::string> temporaries{temporaryPathFor(output)};
         for (const std::string* p : {&reportPath, &tracePath})
-            if (!p->empty()) temporaries.push_back(temporaryFor(*p));
+            if (!p->empty()) temporaries.push_back(temporaryPathFor(*p));
         Watchdog watchdog(temporaries);
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
