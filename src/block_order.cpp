@@ -38,6 +38,40 @@ void checkRange(const openvdb::CoordBBox& box, const char* what)
         }
 }
 
+// Calls fn(axis, tileMin, tileExtents, side) for every face of a tile where the constant region
+// across lies on the other side of the iso-value: the cells along it form a one-block shell.
+template <typename TreeT, typename Fn>
+void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn)
+{
+    typename TreeT::ValueAllCIter it = tree.cbeginValueAll();
+    it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1);
+    for (; it; ++it) {
+        const double v = double(*it);
+        openvdb::CoordBBox box;
+        it.getBoundingBox(box);
+        if (!std::isfinite(v)) {
+            std::ostringstream s;
+            s << "tile " << box << " holds a non-finite value (" << v << ")";
+            throw InputError(s.str());
+        }
+        const bool in = c.inside(v);
+        const int depth = int(it.getDepth());
+        const openvdb::Coord lo = box.min(), size = box.extents();
+        for (int axis = 0; axis < 3; ++axis) {
+            for (int side = 0; side < 2; ++side) {
+                openvdb::Coord across = lo;
+                across[axis] = side ? lo[axis] + size[axis] : lo[axis] - 1;
+                const int acrossDepth = tree.getValueDepth(across);
+                if (acrossDepth > depth) continue;            // finer structure: handled from there
+                if (acrossDepth == depth && side == 0) continue;  // a tile of this size across: its +side reports it
+                if (c.inside(double(tree.getValue(across))) == in) continue;
+                checkRange(box, "tile");
+                fn(axis, lo, size, side);
+            }
+        }
+    }
+}
+
 } // namespace
 
 template <typename TreeT>
@@ -62,45 +96,34 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
         }
     }
     // Tiles: faces where the constant region across is on the other side of the iso-value.
-    typename TreeT::ValueAllCIter it = tree.cbeginValueAll();
-    it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1);
-    for (; it; ++it) {
-        const double v = double(*it);
-        openvdb::CoordBBox box;
-        it.getBoundingBox(box);
-        if (!std::isfinite(v)) {
-            std::ostringstream s;
-            s << "tile " << box << " holds a non-finite value (" << v << ")";
-            throw InputError(s.str());
-        }
-        const bool in = c.inside(v);
-        const int depth = int(it.getDepth());
-        const openvdb::Coord lo = box.min(), size = box.extents();
-        for (int axis = 0; axis < 3; ++axis) {
-            for (int side = 0; side < 2; ++side) {
-                openvdb::Coord across = lo;
-                across[axis] = side ? lo[axis] + size[axis] : lo[axis] - 1;
-                const int acrossDepth = tree.getValueDepth(across);
-                if (acrossDepth > depth) continue;            // finer structure: handled from there
-                if (c.inside(double(tree.getValue(across))) == in) continue;
-                checkRange(box, "tile");
-                const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-                BlockOrigin b;
-                b[axis] = side ? lo[axis] + size[axis] - 8 : lo[axis] - 8;
-                for (int32_t i = lo[u] - 8; i <= lo[u] + size[u] - 8; i += 8)
-                    for (int32_t j = lo[w] - 8; j <= lo[w] + size[w] - 8; j += 8) {
-                        b[u] = i;
-                        b[w] = j;
-                        blocks.push_back(b);
-                    }
+    forEachTileShell(tree, c, [&](int axis, const openvdb::Coord& lo, const openvdb::Coord& size, int side) {
+        const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+        BlockOrigin b;
+        b[axis] = side ? lo[axis] + size[axis] - 8 : lo[axis] - 8;
+        for (int32_t i = lo[u] - 8; i <= lo[u] + size[u] - 8; i += 8)
+            for (int32_t j = lo[w] - 8; j <= lo[w] + size[w] - 8; j += 8) {
+                b[u] = i;
+                b[w] = j;
+                blocks.push_back(b);
             }
-        }
-    }
+    });
     sortBlocks(blocks);
     return blocks;
 }
 
+template <typename TreeT>
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c)
+{
+    uint64_t n = 0;
+    forEachTileShell(tree, c, [&](int axis, const openvdb::Coord&, const openvdb::Coord& size, int) {
+        n += uint64_t(size[(axis + 1) % 3] / 8 + 1) * uint64_t(size[(axis + 2) % 3] / 8 + 1);
+    });
+    return n;
+}
+
 template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
 template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
+template uint64_t countTileShellBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
+template uint64_t countTileShellBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
 
 } // namespace vdb_isosimp

@@ -33,4 +33,10 @@ void sortBlocks(std::vector<BlockOrigin>& blocks);
 template <typename TreeT>
 std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c);
 
+// How many blocks the tiles' faces add to collectBlocks (before duplicates go), without collecting
+// them: a few tiles can describe a surface of millions of blocks, which the memory estimate must see
+// before they are listed. @throw InputError as collectBlocks does.
+template <typename TreeT>
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c);
+
 } // namespace vdb_isosimp

@@ -135,22 +135,8 @@ std::string printable(std::string s)
     return s;
 }
 
-// One grid as the file's descriptor states it.
-struct GridEntry {
-    std::string uniqueName;  // as stored: the name plus a suffix when names repeat
-    std::string plain;       // without the suffix
-    std::string name;        // plain, printable
-    std::string type;        // tree type, "_HalfFloat" appended when stored as half floats
-    std::string parent;      // instance parent (unique name); empty for a grid with its own tree
-    uint64_t gridPos = 0, blockPos = 0, endPos = 0;
-    bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
-};
-
-struct FileEntries {
-    uint32_t version = 0;
-    bool checkable = false;  // false only for files that cannot be walked without being consumed (pipes)
-    std::vector<GridEntry> grids;
-};
+using GridEntry = VdbGridEntry;
+using FileEntries = VdbFileEntries;
 
 void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids, FileEntries& out);
 
@@ -470,18 +456,19 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
 
 } // namespace
 
-void checkVdbFileStructure(const std::string& path)
+VdbFileEntries checkVdbFileStructure(const std::string& path)
 {
-    const FileEntries f = readFileEntries(path);
-    if (!f.checkable) return;
+    FileEntries f = readFileEntries(path);
+    if (!f.checkable) return f;
     struct stat st {};
-    if (::stat(path.c_str(), &st) != 0) return;
+    if (::stat(path.c_str(), &st) != 0) return f;
     BoundedReader in(path, uint64_t(st.st_size));
     for (const GridEntry& e : f.grids) {
         uint32_t compression = 0;
         DelayedLoadSizes delayed;  // decoded too: OpenVDB decodes it when it lists the grids
         walkGridHeader(path, in, e, compression, &delayed);
     }
+    return f;
 }
 
 namespace {
@@ -675,10 +662,9 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
 
 } // namespace
 
-VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridName)
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName)
 {
     VdbGridLayout layout;
-    const FileEntries f = readFileEntries(path);
     if (!f.checkable) return layout;
     const GridEntry* e = nullptr;
     for (const GridEntry& g : f.grids)
@@ -768,10 +754,11 @@ namespace {
 // filling the box; a narrow-band level set yields fewer per leaf).
 constexpr double kBytesPerFace = 300.0;
 constexpr double kFacesPerLeaf = 170.0;
+constexpr double kFacesPerShellBlock = 128.0;  // two triangles per cell of a flat 8x8 patch
 constexpr uint64_t kBaseBytes = 64ull << 20;
 } // namespace
 
-MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o)
+MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o, uint64_t tileShellBlocks)
 {
     MemoryEstimate e;
     e.base = kBaseBytes;
@@ -780,8 +767,8 @@ MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o)
     // once (as many cores), plus the seam planes kept for the slabs below (at most a layer in all).
     e.voxels = uint64_t(2 * kPipelineSlabs + 1) * info.maxLeavesPerLayer * 512u * info.valueBytes;
     // 8 candidate blocks per leaf of 12 bytes, doubled for the vector's growth and the sort.
-    e.blocks = info.leafCount * 8u * 12u * 2u;
-    const double fullFaces = kFacesPerLeaf * double(info.leafCount);
+    e.blocks = (info.leafCount * 8u + tileShellBlocks) * 12u * 2u;
+    const double fullFaces = kFacesPerLeaf * double(info.leafCount) + kFacesPerShellBlock * double(tileShellBlocks);
     const double kept = o.targetFaces > 0 ? std::min(double(o.targetFaces), fullFaces) : o.ratio * fullFaces;
     const double faces = kept + 2.0 * double(o.batchFaces);
     const double bytes = kBytesPerFace * faces;
@@ -816,14 +803,15 @@ std::string formatBytes(uint64_t b)
 }
 
 MemoryEstimate checkMemoryBudget(const std::string& path, const VolumeInfo& info, const Options& options,
-                                 uint64_t limit)
+                                 uint64_t limit, uint64_t tileShellBlocks)
 {
-    const MemoryEstimate e = estimateMemory(info, options);
+    const MemoryEstimate e = estimateMemory(info, options, tileShellBlocks);
     if (limit > 0 && e.total() > limit) {
         std::ostringstream s;
         s << path << ": estimated peak memory " << formatBytes(e.total()) << " exceeds the limit of "
-          << formatBytes(limit) << " (grid '" << info.gridName << "': " << info.leafCount
-          << " leaves; mesh " << formatBytes(e.mesh) << ", topology " << formatBytes(e.topology)
+          << formatBytes(limit) << " (grid '" << info.gridName << "': " << info.leafCount << " leaves";
+        if (tileShellBlocks > 0) s << " and " << tileShellBlocks << " blocks along tile faces";
+        s << "; mesh " << formatBytes(e.mesh) << ", topology " << formatBytes(e.topology)
           << "); lower --ratio, --faces or --batch, or raise --max-memory";
         throw InputError(s.str());
     }

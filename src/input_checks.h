@@ -18,14 +18,32 @@
 
 namespace vdb_isosimp {
 
+// One grid as the file's descriptor states it.
+struct VdbGridEntry {
+    std::string uniqueName;  // as stored: the name plus a suffix when names repeat
+    std::string plain;       // without the suffix
+    std::string name;        // plain, printable
+    std::string type;        // tree type, "_HalfFloat" appended when stored as half floats
+    std::string parent;      // instance parent (unique name); empty for a grid with its own tree
+    uint64_t gridPos = 0, blockPos = 0, endPos = 0;
+    bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
+};
+
+// Where a file's grids lie, as checkVdbFileStructure found them.
+struct VdbFileEntries {
+    uint32_t version = 0;
+    bool checkable = false;  // false only for files that cannot be walked without being consumed (pipes)
+    std::vector<VdbGridEntry> grids;
+};
+
 // Walks the header, the metadata and the grid descriptors of a .vdb file and checks that every
 // grid's data lies inside the file, and every grid's metadata and transform (which OpenVDB reads when
 // it lists the grids) inside its grid. In a file written without grid offsets (a stream), which
 // OpenVDB reads whole when it opens it, every grid's tree is walked too (as checkVdbGridData does);
 // such a file with a grid of another type than float or double is refused, as are file formats older
-// than 222.
+// than 222. Returns where the grids lie, for checkVdbGridData (a stream's trees are walked once here).
 // @throw InputError naming the file ("truncated or damaged OpenVDB file ...", or what is refused).
-void checkVdbFileStructure(const std::string& path);
+VdbFileEntries checkVdbFileStructure(const std::string& path);
 
 // What checkVdbGridData learned about a grid's tree.
 struct VdbGridLayout {
@@ -43,7 +61,7 @@ struct VdbGridLayout {
 // (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
 // @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
 // "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
-VdbGridLayout checkVdbGridData(const std::string& path, const std::string& gridName);
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).
@@ -66,7 +84,9 @@ struct MemoryEstimate {
     uint64_t total() const { return topology + voxels + blocks + mesh + base; }
 };
 
-MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& options);
+// `tileShellBlocks`: the blocks along tile faces that cross the iso-value (countTileShellBlocks), each
+// a flat 8x8 patch of cells, which the leaf count does not show.
+MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& options, uint64_t tileShellBlocks = 0);
 
 // Physical memory, lowered to the cgroup (container) limit when there is one. 0 if unknown.
 uint64_t machineMemoryBytes();
@@ -77,6 +97,6 @@ std::string formatBytes(uint64_t bytes);
 // Estimates the run's memory from the opened grid's topology and throws InputError naming the file
 // when it exceeds `limitBytes` (0: no limit). Returns the estimate.
 MemoryEstimate checkMemoryBudget(const std::string& path, const VolumeInfo& info, const Options& options,
-                                 uint64_t limitBytes);
+                                 uint64_t limitBytes, uint64_t tileShellBlocks = 0);
 
 } // namespace vdb_isosimp

@@ -155,6 +155,12 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
         return EmptySurfaceError(s.str());
     };
 
+    // Blocks along tile faces are known once the iso-value is: a few large tiles can describe a
+    // surface far larger than their leaves suggest, so the budget is checked again before listing them.
+    if (opt.maxMemoryBytes > 0)
+        if (const uint64_t shells = vol->tileShellBlocks(cls))
+            checkMemoryBudget(path, info, opt, opt.maxMemoryBytes, shells);
+
     // Block list.
     const std::vector<BlockOrigin> blocks = vol->blocks(cls);
     rep.blocks = blocks.size();

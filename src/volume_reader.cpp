@@ -108,6 +108,8 @@ public:
         return collectBlocks(mGrid->tree(), c);
     }
 
+    uint64_t tileShellBlocks(const Classifier& c) const override { return countTileShellBlocks(mGrid->tree(), c); }
+
     void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
     {
         loadLeaves(origin);
@@ -444,7 +446,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
     // OpenVDB trusts the offsets a file states; a truncated file would send it into a loop.
-    checkVdbFileStructure(path);
+    const VdbFileEntries entries = checkVdbFileStructure(path);
 
     openvdb::io::File file(path);
     openvdb::GridPtrVecPtr metas;
@@ -490,7 +492,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     }
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
-    const VdbGridLayout layout = checkVdbGridData(path, meta->getName());
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
 
     openvdb::GridBase::Ptr grid;
     try {

@@ -47,6 +47,8 @@ public:
 
     // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
     virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
+    // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
+    virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
     // when the voxels cannot be read from the file (delayed loading).
     virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;

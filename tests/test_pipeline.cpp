@@ -1,6 +1,7 @@
 // End to end through the library: R = 1 equals dense Marching Cubes; simplified meshes stay closed,
 // manifold and outward; face targets are met; memory follows the paper's bound; threads don't matter;
 // quality matches OpenMesh's in-core decimator.
+#include "block_order.h"
 #include "errors.h"
 #include "mesh_error.h"
 #include "mesh_stats.h"
@@ -338,6 +339,33 @@ TEST(Pipeline, MemoryBudgetIsCheckedOnTheOpenedGrid)
     }
     o.maxMemoryBytes = 64ull << 30;
     EXPECT_GT(simplifyFile(sphereFile(), o).report.facesOut, 0u);
+}
+
+// A grid of tiles only: its leaves say nothing of the surface its tiles' faces describe.
+TEST(Pipeline, MemoryBudgetCountsTheSurfaceAlongTileFaces)
+{
+    Options o = ratioOptions(0.2);
+    o.iso = 0.5;
+    o.maxMemoryBytes = 4ull << 30;
+    // One root tile, 4096^3 voxels: 6 x 513^2 shell blocks, some 200M faces at full resolution.
+    const auto huge = openvdb::FloatGrid::create(0.0f);
+    huge->tree().addTile(3, openvdb::Coord(0), 1.0f, true);
+    try {
+        simplifyGrid(*huge, o);
+        ADD_FAILURE() << "a 4096^3 tile's surface was accepted within 4 GiB";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("1579014 blocks along tile faces"), std::string::npos) << e.what();
+    }
+    // One 128^3 tile (6 x 17^2 shell blocks) fits: the count bounds the block list and the surface.
+    const auto box = openvdb::FloatGrid::create(0.0f);
+    box->tree().addTile(2, openvdb::Coord(0), 1.0f, true);
+    Classifier c;
+    c.iso = 0.5;
+    EXPECT_EQ(countTileShellBlocks(box->tree(), c), 6u * 17 * 17);
+    o.ratio = 1.0;
+    const Result r = simplifyGrid(*box, o);
+    EXPECT_LE(r.report.blocks, 6u * 17 * 17);
+    EXPECT_NEAR(double(r.report.facesOut) / (128.0 * 6 * 17 * 17), 1.0, 0.15);  // the estimate's faces per block
 }
 
 TEST(Pipeline, BadOptionsAreRejected)

@@ -6,6 +6,7 @@
 // Corpus: tests/fuzz/corpus/vdb_read (the samples of vdb_samples.h).
 #include "block_order.h"
 #include "errors.h"
+#include "input_checks.h"
 #include "volume_reader.h"
 
 #include "fuzz_common.h"
@@ -22,6 +23,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
         vdb_isosimp::Classifier c;
         c.insideBelow = info.levelSet;
         c.iso = info.levelSet ? 0.0 : 0.5 * (info.background + 1.0);
+        // The pipeline's memory check, with a budget that keeps each input to a fraction of a second:
+        // a damaged topology's tiles can describe a surface of millions of blocks, a real surface
+        // whose meshing would only cost time here.
+        vdb_isosimp::checkMemoryBudget(path, info, vdb_isosimp::Options{}, 256ull << 20, vol->tileShellBlocks(c));
         const auto blocks = vol->blocks(c);
         vdb_isosimp::BlockSamples s;
         // Enough blocks for every leaf of a corpus file; a grown input's millions of tile blocks
