@@ -11,12 +11,12 @@
 //      (now without locks) brings it to the target.
 // Prints one JSON line (baseline_openmesh's keys plus per-phase time, peak memory and disk bytes).
 #include "bench_util.h"
+#include "core/marching_cubes.h"
 #include "eval_openmesh.h"
-#include "marching_cubes.h"
-#include "mesh_writer.h"
+#include "pipeline/run_stats.h"
 #include "reference_decimate.h"
-#include "run_stats.h"
-#include "volume_reader.h"
+#include "vdb/volume_reader.h"
+#include "vdb_isosimp/mesh_writer.h"
 
 #include <CLI/CLI.hpp>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>

@@ -3,10 +3,10 @@
 // volumeToMesh by default (what an OpenVDB user has at hand) or our pipeline at R = 1.
 // Prints one JSON line (as baseline_openmesh) and writes the mesh with -o.
 #include "bench_util.h"
-#include "mesh_writer.h"
-#include "run_stats.h"
+#include "pipeline/run_stats.h"
 #include "vdb_extract.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/mesh_writer.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <CLI/CLI.hpp>
 #include <meshoptimizer.h>

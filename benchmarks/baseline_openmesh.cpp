@@ -1,11 +1,11 @@
 // The in-core route the product competes with: extract the full-resolution surface, then decimate it
 // with OpenMesh's DecimaterT + ModQuadricT (the paper's "QSlim"). Prints one JSON line with faces,
 // seconds per stage and peak RSS, and writes the mesh if -o is given.
-#include "errors.h"
 #include "mesh_io.h"
+#include "pipeline/run_stats.h"
 #include "reference_decimate.h"
-#include "run_stats.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/errors.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <CLI/CLI.hpp>
 

@@ -5,9 +5,9 @@
 // Prints one JSON line; "seconds" counts the whole search, "final_run_seconds" the one run at the
 // chosen adaptivity (the cost if the threshold were known in advance).
 #include "bench_util.h"
-#include "mesh_writer.h"
-#include "run_stats.h"
+#include "pipeline/run_stats.h"
 #include "vdb_extract.h"
+#include "vdb_isosimp/mesh_writer.h"
 
 #include <CLI/CLI.hpp>
 

@@ -1,7 +1,7 @@
 // Small helpers shared by the benchmark baselines: per-phase peak memory and the one-line JSON
 // result every baseline prints (the format of baseline_openmesh, plus extra keys).
 #pragma once
-#include "run_stats.h"
+#include "pipeline/run_stats.h"
 
 #include <cstdio>
 #include <fstream>

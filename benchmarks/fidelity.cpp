@@ -8,7 +8,7 @@
 #include "mesh_stats.h"
 #include "reference_decimate.h"
 #include "test_volumes.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <CLI/CLI.hpp>
 #include <meshoptimizer.h>

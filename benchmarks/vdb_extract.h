@@ -5,7 +5,7 @@
 // grid classes get their orientation inverted, i.e. inside is value > iso: VolumeToMesh.h,
 // "invertSurfaceOrientation"), but it winds faces clockwise seen from outside; turned here.
 #pragma once
-#include "mesh.h"
+#include "vdb_isosimp/mesh.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/VolumeToMesh.h>

@@ -6,7 +6,7 @@
 //     # vertices: float32 (N, 3) world positions; faces: uint32 (M, 3), counter-clockwise from outside
 #include "pyopenvdb_grid.h"
 
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>

@@ -16,27 +16,27 @@ fi
 CXX=${FUZZ_CXX:-clang++}
 OUT=build-fuzz
 mkdir -p "$OUT/artifacts"
-FLAGS=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -Isrc -Itests/fuzz)
+FLAGS=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -Isrc -Iinclude -Iconvert -Iapps -Itests/fuzz)
 build() {  # target, sources and libraries...
   local t=$1; shift
-  if [ ! -x "$OUT/$t" ] || [ -n "$(find tests/fuzz src -newer "$OUT/$t" -name '*.[ch]*' | head -1)" ]; then
+  if [ ! -x "$OUT/$t" ] || [ -n "$(find tests/fuzz src include convert apps -newer "$OUT/$t" -name '*.[ch]*' | head -1)" ]; then
     echo "fuzz: building $t"
     "$CXX" "${FLAGS[@]}" "tests/fuzz/$t.cpp" "$@" -o "$OUT/$t"
   fi
 }
-build fuzz_nrrd src/raw_header.cpp -lz
-build fuzz_metaimage src/raw_header.cpp -lz
-build fuzz_nifti src/raw_header.cpp -lz
-build fuzz_cli_numbers src/raw_header.cpp -lz
+build fuzz_nrrd convert/raw_header.cpp -lz
+build fuzz_metaimage convert/raw_header.cpp -lz
+build fuzz_nifti convert/raw_header.cpp -lz
+build fuzz_cli_numbers convert/raw_header.cpp -lz
 # OpenVDB headers use Imath half floats inline.
 IMATH=$(pkg-config --libs Imath 2>/dev/null || echo -lImath-3_1)
 # The converter reads image stacks too: DICOM through DCMTK, TIFF through libtiff.
-STACKS=(src/slice_source.cpp src/dicom_series.cpp src/tiff_stack.cpp)
+STACKS=(convert/slice_source.cpp convert/dicom_series.cpp convert/tiff_stack.cpp)
 STACK_LIBS=(-ldcmjpls -ldcmjpeg -ldcmimgle -ldcmdata -loflog -lofstd -ltiff)
-build fuzz_raw2vdb src/raw_header.cpp src/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
-build fuzz_image_stacks src/raw_header.cpp src/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
-build fuzz_vdb_read src/volume_reader.cpp src/input_checks.cpp src/block_order.cpp src/marching_cubes.cpp \
-  -lopenvdb -ltbb $IMATH -lz -lpthread
+build fuzz_raw2vdb convert/raw_header.cpp convert/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
+build fuzz_image_stacks convert/raw_header.cpp convert/raw_converter.cpp "${STACKS[@]}" -lopenvdb -ltbb $IMATH "${STACK_LIBS[@]}" -lz -lpthread
+build fuzz_vdb_read src/vdb/volume_reader.cpp src/vdb/input_checks.cpp src/vdb/block_order.cpp src/core/marching_cubes.cpp \
+  src/pipeline/memory_budget.cpp -lopenvdb -ltbb $IMATH -lz -lpthread
 TARGETS=(fuzz_nrrd fuzz_metaimage fuzz_nifti fuzz_cli_numbers fuzz_raw2vdb fuzz_image_stacks fuzz_vdb_read)
 
 # OpenVDB and TBB are not instrumented (see scripts/test_sanitize.sh for container-overflow).

@@ -2,8 +2,8 @@
 // consistently oriented, outward, and (below R = 1) no face of zero area, meaning at most 1e-12 of the
 // squared bounding-box diagonal.
 #pragma once
-#include "mesh.h"
 #include "mesh_stats.h"
+#include "vdb_isosimp/mesh.h"
 
 #include <gtest/gtest.h>
 

@@ -9,8 +9,8 @@
 // states fails instead of swapping the machine) and a time limit.
 // Located damage: the leaf a damaged chunk belongs to is found independently of the reader, as the
 // bytes where two files differ that differ only in that leaf's voxels; the message must name it.
-#include "errors.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/errors.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include "fuzz/vdb_samples.h"
 #include "test_files.h"

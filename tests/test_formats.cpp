@@ -3,8 +3,8 @@
 // counts, and every triangle's corners at exactly the positions written (floats round-trip exactly:
 // binary formats copy them, text formats print 9 significant digits).
 #include "mesh_io.h"
-#include "mesh_writer.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/mesh_writer.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>

@@ -1,9 +1,9 @@
 // Volume::fromGrid (an in-memory grid, read only) gives what Volume::open gives for the same grid read
 // from a file: the same info, block list, samples and value range; and it never frees the caller's voxels.
-#include "volume_reader.h"
 #include "test_grids.h"
+#include "vdb/volume_reader.h"
 
-#include "errors.h"
+#include "vdb_isosimp/errors.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // Small hand-built and random sparse grids for the tests, and a plain dense Marching Cubes reference.
 #pragma once
-#include "marching_cubes.h"
-#include "mesh.h"
+#include "core/marching_cubes.h"
+#include "vdb_isosimp/mesh.h"
 
 #include <openvdb/openvdb.h>
 

@@ -6,7 +6,7 @@
 #include "reference_decimate.h"
 #include "surface_checks.h"
 #include "test_volumes.h"
-#include "vdb_isosimp.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <gtest/gtest.h>
 

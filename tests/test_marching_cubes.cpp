@@ -1,5 +1,5 @@
 // The generated case table: every case closes up with its neighbours, and normals point outward.
-#include "marching_cubes.h"
+#include "core/marching_cubes.h"
 
 #include <gtest/gtest.h>
 

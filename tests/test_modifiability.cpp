@@ -2,11 +2,11 @@
 // the vertex's edge have been extracted, and every vertex is finalised exactly once. Also checks that
 // the block list covers every straddling cell of a dense copy (no holes) and that the block order
 // is z, y, x.
-#include "block_order.h"
-#include "edge_key.h"
-#include "marching_cubes.h"
-#include "modifiability.h"
+#include "core/edge_key.h"
+#include "core/marching_cubes.h"
+#include "core/modifiability.h"
 #include "test_grids.h"
+#include "vdb/block_order.h"
 
 #include <openvdb/tools/Dense.h>
 

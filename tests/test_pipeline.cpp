@@ -1,15 +1,15 @@
 // End to end through the library: R = 1 equals dense Marching Cubes; simplified meshes stay closed,
 // manifold and outward; face targets are met; memory follows the paper's bound; threads don't matter;
 // quality matches OpenMesh's in-core decimator.
-#include "block_order.h"
-#include "errors.h"
 #include "mesh_error.h"
 #include "mesh_stats.h"
 #include "reference_decimate.h"
 #include "surface_checks.h"
 #include "test_grids.h"
 #include "test_volumes.h"
-#include "vdb_isosimp.h"
+#include "vdb/block_order.h"
+#include "vdb_isosimp/errors.h"
+#include "vdb_isosimp/vdb_isosimp.h"
 
 #include <openvdb/tools/LevelSetSphere.h>
 
@@ -366,6 +366,24 @@ TEST(Pipeline, MemoryBudgetCountsTheSurfaceAlongTileFaces)
     const Result r = simplifyGrid(*box, o);
     EXPECT_LE(r.report.blocks, 6u * 17 * 17);
     EXPECT_NEAR(double(r.report.facesOut) / (128.0 * 6 * 17 * 17), 1.0, 0.15);  // the estimate's faces per block
+}
+
+// Tiles only, none crossing the iso-value: no block at all to extract, which is "no surface".
+TEST(Pipeline, TilesWithoutSurfaceAreNoSurface)
+{
+    const auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->tree().addTile(2, openvdb::Coord(0), 1.0f, true);
+    for (uint64_t faces : {uint64_t(0), uint64_t(100)}) {
+        Options o;
+        o.iso = 5.0;
+        o.targetFaces = faces;
+        try {
+            simplifyGrid(*grid, o);
+            ADD_FAILURE() << "meshed a surface at iso 5 in values [0, 1]";
+        } catch (const EmptySurfaceError& e) {
+            EXPECT_NE(std::string(e.what()).find("no surface at iso-value 5"), std::string::npos) << e.what();
+        }
+    }
 }
 
 TEST(Pipeline, BadOptionsAreRejected)

@@ -3,8 +3,8 @@
 // runs at the latest every B/2 new faces and stops at F_t + B/2, F_t = (F_g - F_u) R + F_u; so after a
 // pass that reached its target the mesh never holds more than that F_t + B faces before the next; the
 // final pass reaches its target.
-#include "schedule.h"
-#include "volume_reader.h"
+#include "core/schedule.h"
+#include "vdb/volume_reader.h"
 
 #include <openvdb/tools/LevelSetSphere.h>
 

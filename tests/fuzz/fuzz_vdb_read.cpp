@@ -4,10 +4,10 @@
 // in order as the pipeline does, and the value range (a second delayed-loading read). InputError is
 // the only way out; anything else (a crash, a sanitizer report, another exception) is a finding.
 // Corpus: tests/fuzz/corpus/vdb_read (the samples of vdb_samples.h).
-#include "block_order.h"
-#include "errors.h"
-#include "input_checks.h"
-#include "volume_reader.h"
+#include "pipeline/memory_budget.h"
+#include "vdb/block_order.h"
+#include "vdb/volume_reader.h"
+#include "vdb_isosimp/errors.h"
 
 #include "fuzz_common.h"
 

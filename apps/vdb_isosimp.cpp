@@ -1,0 +1,371 @@
+// vdb_isosimp IN.vdb: parse the command line, run one library call, report. Errors become one line on
+// stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
+#include "cli_numbers.h"
+#include "json_text.h"
+#include "vdb_isosimp/errors.h"
+#include "vdb_isosimp/mesh_writer.h"
+#include "vdb_isosimp/temporary_file.h"
+#include "vdb_isosimp/vdb_isosimp.h"
+
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <malloc.h>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <sys/stat.h>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace {
+
+using namespace vdb_isosimp;
+
+// A one-line bar on a terminal: blocks done, faces kept, elapsed time and an estimate of the rest.
+class TerminalProgress final : public Progress {
+public:
+    bool update(double fraction, uint64_t facesKept) override
+    {
+        // Called per block batch and, during decimation passes, every few thousand collapses: redraw
+        // at most five times a second. After the last block the final pass runs ("finishing").
+        const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
+        if (t - mLast < 0.2) return true;
+        mLast = t;
+        const int width = 30, filled = int(fraction * width);
+        std::string bar(size_t(filled), '#');
+        bar.resize(width, '.');
+        const double eta = fraction > 0.01 ? t * (1.0 - fraction) / fraction : 0.0;
+        if (fraction < 1.0)
+            std::fprintf(stderr, "\r[%s] %5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", bar.c_str(), 100.0 * fraction,
+                         (unsigned long long)facesKept, t, eta);
+        else
+            std::fprintf(stderr, "\r[%s] finishing: %llu faces kept  %.0fs          ", bar.c_str(),
+                         (unsigned long long)facesKept, t);
+        mShown = true;
+        std::fflush(stderr);
+        return true;
+    }
+
+    // Clears the bar's line before the summary or an error is printed.
+    void clear()
+    {
+        if (mShown) std::fprintf(stderr, "\r%*s\r", 90, "");
+        mShown = false;
+    }
+
+private:
+    std::chrono::steady_clock::time_point mStart = std::chrono::steady_clock::now();
+    double mLast = -1.0;
+    bool mShown = false;
+};
+
+// Interruption. SIGINT/SIGTERM/SIGHUP only record the signal (nothing else is safe in a handler).
+// The library sees it through RunProgress at its next progress call, throws Cancelled and unwinds;
+// main then exits with 128 + the signal number (130 for Ctrl-C, 143 for SIGTERM). Steps without a
+// cancellation point (the final decimation, writing the mesh) are covered by the watchdog thread:
+// if the run has not stopped 0.5 s after the signal, or at a second signal, it removes the
+// temporary files and ends the process with the same code. Nothing is left under an output name:
+// files only reach their names by a rename after a complete write.
+std::atomic<int> gSignal{0};
+std::atomic<int> gSignalCount{0};
+
+extern "C" void onSignal(int sig)
+{
+    gSignal.store(sig);
+    gSignalCount.fetch_add(1);
+}
+
+class Watchdog {
+public:
+    explicit Watchdog(std::vector<std::string> temporaries) : mTemps(std::move(temporaries))
+    {
+        for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+            struct sigaction sa {};
+            sa.sa_handler = onSignal;
+            sigemptyset(&sa.sa_mask);
+            ::sigaction(sig, &sa, nullptr);
+        }
+        mThread = std::thread([this] { watch(); });
+    }
+    ~Watchdog()
+    {
+        mDone.store(true);
+        mThread.join();
+    }
+
+private:
+    void watch()
+    {
+        using Clock = std::chrono::steady_clock;
+        Clock::time_point since{};
+        while (!mDone.load()) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+            const int sig = gSignal.load();
+            if (!sig) continue;
+            if (since == Clock::time_point{}) since = Clock::now();
+            if (gSignalCount.load() > 1 || Clock::now() - since > std::chrono::milliseconds(500)) {
+                for (const std::string& t : mTemps) ::unlink(t.c_str());
+                static const char msg[] = "vdb_isosimp: interrupted\n";
+                if (::write(STDERR_FILENO, msg, sizeof msg - 1) < 0) {}
+                ::_exit(128 + sig);
+            }
+        }
+    }
+
+    std::vector<std::string> mTemps;
+    std::atomic<bool> mDone{false};
+    std::thread mThread;
+};
+
+// What the library is given: the bar when there is one, and a stop when a signal came.
+class RunProgress final : public Progress {
+public:
+    explicit RunProgress(Progress* bar) : mBar(bar) {}
+    bool update(double fraction, uint64_t facesKept) override
+    {
+        if (gSignal.load()) return false;
+        return mBar ? mBar->update(fraction, facesKept) : true;
+    }
+
+private:
+    Progress* mBar;
+};
+
+// Existing special files (FIFOs, devices such as /dev/stdout or /dev/full) are written in place: a
+// temporary file and a rename would replace the device node itself.
+bool isSpecialFile(const std::string& path)
+{
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+std::string stemOf(const std::string& path)
+{
+    const auto slash = path.find_last_of('/');
+    std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+    const auto dot = name.find_last_of('.');
+    return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
+}
+
+std::string reportJson(const Report& r, const std::string& output, const Options& o)
+{
+    std::ostringstream j;
+    j.precision(10);
+    j << "{\n";
+    const std::vector<ReportField> fields = reportFields(r, o);
+    for (size_t i = 0; i < fields.size(); ++i) {
+        const ReportField& f = fields[i];
+        j << "  \"" << f.name << "\": ";
+        if (f.kind == ReportField::Kind::Text) j << jsonString(f.text);
+        else if (f.kind == ReportField::Kind::Integer) j << f.integer;
+        else j << f.real;
+        j << (i + 1 < fields.size() ? ",\n" : "\n");
+        if (f.name == "input") j << "  \"output\": " << jsonString(output) << ",\n";
+    }
+    j << "}\n";
+    return j.str();
+}
+
+std::string traceCsv(const Report& r)
+{
+    std::ostringstream c;
+    c << "decimation,faces_generated,faces_before,faces_after,uncontractible,target,slab\n";
+    for (size_t i = 0; i < r.trace.size(); ++i) {
+        const DecimationRecord& d = r.trace[i];
+        c << i + 1 << ',' << d.facesGenerated << ',' << d.facesBefore << ',' << d.facesAfter << ','
+          << d.uncontractible << ',' << d.target << ',' << d.slab << '\n';
+    }
+    return c.str();
+}
+
+// Text files (the report, the trace) also go through a temporary file and a rename.
+void writeText(const std::string& path, const std::string& text)
+{
+    if (isSpecialFile(path)) {
+        std::FILE* f = std::fopen(path.c_str(), "wb");
+        if (!f) throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+        const bool bad = std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fflush(f) != 0;
+        const int err = errno;
+        if (std::fclose(f) != 0 || bad) throw OutputError(path + ": cannot write report (" + std::strerror(bad ? err : errno) + ")");
+        return;
+    }
+    const std::string tmp = temporaryPathFor(path);
+    {
+        std::ofstream f(tmp, std::ios::binary);
+        f << text;
+        f.flush();
+        if (!f) {
+            std::remove(tmp.c_str());
+            throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+        }
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw OutputError(path + ": cannot write report (" + std::strerror(errno) + ")");
+    }
+}
+
+// Fails fast, before the long run, when the output cannot be created where asked.
+void probeWritable(const std::string& path)
+{
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0) {
+        if (S_ISDIR(st.st_mode)) throw OutputError(path + ": cannot create output file (" + std::strerror(EISDIR) + ")");
+        if (!S_ISREG(st.st_mode)) {  // written in place: it must be open for writing
+            if (::access(path.c_str(), W_OK) != 0)
+                throw OutputError(path + ": cannot write to it (" + std::strerror(errno) + ")");
+            return;
+        }
+    }
+    const std::string tmp = temporaryPathFor(path);
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw OutputError(path + ": cannot create output file (" + std::strerror(errno) + ")");
+    std::fclose(f);
+    std::remove(tmp.c_str());
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+    // Return freed memory to the system past 8 MiB of slack. glibc's default threshold grows with the
+    // largest block freed (up to 64 MiB per arena), and block meshes, voxel leaves and merged slab
+    // arrays are freed all run long: that slack would be a sixth of the peak (docs/perf.md).
+    mallopt(M_TRIM_THRESHOLD, 8 << 20);
+    CLI::App app{"vdb_isosimp: extract the iso-surface of an OpenVDB grid with Marching Cubes and simplify it\n"
+                 "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
+                 "Output: world space, triangles counter-clockwise seen from outside; the format follows the\n"
+                 "extension: .ply (binary; --ascii for text), .obj, .stl (binary), .glb (glTF 2.0 binary).\n"
+                 "Exit codes: 0 done, 1 bad input or output, 2 bad usage, 3 no surface at the iso-value."};
+    std::string input, output, reportPath, tracePath;
+    Options opt;
+    double iso = 0.0;
+    bool quiet = false, normals = false, ascii = false;
+
+    app.add_option("input", input, "Input .vdb file")->required();
+    app.add_option("-o,--output", output,
+                   "Output mesh: .ply, .obj, .stl or .glb (by extension). Default: <input stem>.ply in the\n"
+                   "current directory");
+    app.add_flag("--normals", normals, "Add area-weighted vertex normals (PLY, OBJ, glTF; STL always has face normals)");
+    app.add_flag("--ascii", ascii, "Write ASCII PLY instead of binary (.ply only)");
+    app.add_option("--grid", opt.gridName, "Grid to mesh. Default: the first float or double grid");
+    auto* isoOpt = app.add_option("--iso", iso,
+                                  "Iso-value. Default: 0 for level sets (inside: value < iso); for fog and other\n"
+                                  "grids (inside: value > iso) the midpoint of the value range, which is printed");
+    auto* ratioOpt = app.add_option("-r,--ratio", opt.ratio, "Decimation rate R in (0,1]: faces kept / full faces")
+                         ->default_val(opt.ratio)
+                         ->check(CLI::Range(0.0, 1.0));
+    auto* facesOpt = app.add_option("-f,--faces", opt.targetFaces,
+                                    "Keep this many faces instead of a ratio (an exact counting pass finds R)")
+                         ->check(CLI::PositiveNumber);
+    ratioOpt->excludes(facesOpt);
+    app.add_option("-b,--batch", opt.batchFaces,
+                   "B: room for new faces between two decimations (half holds collapses deferred to a later pass); larger is slower but closer to in-core quality")
+        ->default_val(opt.batchFaces)
+        ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 40));
+    app.add_option("-j,--threads", opt.threads, "Worker threads, 0 = all cores; the output is the same for any count")
+        ->default_val(opt.threads)
+        ->check(CLI::Range(0, 1024));
+    app.add_option("--report", reportPath, "Also write a JSON report (faces, decimations, memory, time) to this file");
+    app.add_option("--trace", tracePath,
+                   "Also write one CSV row per decimation: decimation,faces_generated,faces_before,faces_after,\n"
+                   "uncontractible,target,slab (for plots of the intermediate mesh size; faces_generated counts\n"
+                   "per slab, the last row is the final pass over the merged slabs)");
+    app.add_flag("-q,--quiet", quiet, "Print errors only (no progress bar, no summary)");
+    std::string maxMemory = "machine";
+    app.add_option("--max-memory", maxMemory,
+                   "Refuse to start when the estimated peak memory (from the grid's topology, before any voxel\n"
+                   "is read) exceeds SIZE: bytes or K/M/G/T (powers of 1024), 0 for no limit. Default: the\n"
+                   "machine's physical memory, or the container's limit when lower")
+        ->default_val(maxMemory);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::cerr << "vdb_isosimp: " << e.what() << " (see --help)\n";
+        return 2;
+    }
+    if (*isoOpt) opt.iso = iso;
+    if (*isoOpt && !std::isfinite(iso)) {
+        std::cerr << "vdb_isosimp: --iso must be a finite number (see --help)\n";
+        return 2;
+    }
+    if (!(opt.ratio > 0.0)) {  // also NaN, which CLI11's range check lets through
+        std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
+        return 2;
+    }
+    if (output.empty()) output = stemOf(input) + ".ply";
+    // Checked by the pipeline on the grid it opens (opening it here too cost a second topology read).
+    if (maxMemory == "machine") opt.maxMemoryBytes = machineMemoryBytes();
+    else if (!parseMemorySize(maxMemory, opt.maxMemoryBytes)) {
+        std::cerr << "vdb_isosimp: --max-memory: '" << maxMemory << "' is not a size (e.g. 8G, 512M, 0) (see --help)\n";
+        return 2;
+    }
+    if (ascii) {
+        try {
+            formatForPath(output, true);
+        } catch (const std::exception& e) {
+            std::cerr << "vdb_isosimp: --ascii: " << e.what() << " (see --help)\n";
+            return 2;
+        }
+    }
+
+    TerminalProgress bar;
+    try {
+        formatForPath(output, ascii);  // an unsupported extension fails before the long run
+        probeWritable(output);
+        std::vector<std::string> temporaries{temporaryPathFor(output)};
+        for (const std::string* p : {&reportPath, &tracePath})
+            if (!p->empty()) temporaries.push_back(temporaryPathFor(*p));
+        Watchdog watchdog(temporaries);
+        const bool showBar = !quiet && ::isatty(STDERR_FILENO);
+        RunProgress progress(showBar ? &bar : nullptr);
+        Result res = simplifyFile(input, opt, &progress);
+        bar.clear();
+        if (gSignal.load()) throw Cancelled("interrupted");
+        const Report& r = res.report;
+        if (r.isoDefaulted && !quiet)
+            std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
+                         r.gridClass.c_str(), r.grid.c_str(), r.iso);
+        WriteOptions wo;
+        wo.ascii = ascii;
+        wo.normals = normals;
+        wo.objectName = r.grid;
+        wo.comment = "vdb_isosimp grid " + r.grid;
+        writeMesh(res.mesh, output, wo);
+        if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
+        if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
+        if (!quiet)
+            std::fprintf(stderr, "vdb_isosimp: %s: %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
+                         input.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
+                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
+        return 0;
+    } catch (const MemoryBudgetError& e) {
+        bar.clear();
+        std::cerr << "vdb_isosimp: " << e.what() << " (--ratio, --faces, --batch, --max-memory)\n";
+        return 1;
+    } catch (const EmptySurfaceError& e) {
+        bar.clear();
+        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        return 3;
+    } catch (const Cancelled&) {
+        bar.clear();
+        std::cerr << "vdb_isosimp: interrupted\n";
+        const int sig = gSignal.load();
+        return 128 + (sig ? sig : SIGINT);
+    } catch (const std::exception& e) {
+        bar.clear();
+        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        return 1;
+    }
+}

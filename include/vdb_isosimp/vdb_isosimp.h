@@ -1,0 +1,149 @@
+// vdb_isosimp: iso-surface extraction with on-the-fly simplification from OpenVDB volumes.
+//
+// One call for most users:
+//     vdb_isosimp::Result r = vdb_isosimp::simplifyFile("smoke.vdb", options);
+// reads a float/double grid with delayed loading, extracts its iso-surface with Marching Cubes block by
+// block (8^3 cells, z/y/x order) and decimates it with quadric edge collapse while extracting, so the
+// full-resolution surface never exists in memory. The result is a closed, oriented (counter-clockwise
+// seen from outside) triangle mesh in world space.
+//
+// Also: simplifyGrid() for a grid already in memory, and variants of both that hand the final mesh to
+// a MeshSink in pieces instead of returning it. Write the mesh with writeMesh() (mesh_writer.h).
+// Installed as a CMake package: find_package(vdb_isosimp CONFIG), target vdb_isosimp::vdb_isosimp,
+// #include <vdb_isosimp/vdb_isosimp.h>.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <openvdb/version.h>
+
+#include "errors.h"
+#include "mesh.h"
+#include "mesh_writer.h"
+
+namespace openvdb {
+OPENVDB_USE_VERSION_NAMESPACE
+namespace OPENVDB_VERSION_NAME {
+class GridBase;
+}
+} // namespace openvdb
+
+namespace vdb_isosimp {
+
+struct Options {
+    // Grid to mesh; empty: the first float or double grid of the file.
+    std::string gridName;
+    // Iso-value. Unset: 0 for level sets, the midpoint of the grid's value range for other grids.
+    std::optional<double> iso;
+    // Decimation rate R in (0, 1]: faces kept / faces of the full-resolution surface. Default 0.2.
+    double ratio = 0.2;
+    // If > 0: keep this many faces instead (an exact counting pass over the blocks turns it into R).
+    uint64_t targetFaces = 0;
+    // B: the intermediate mesh holds at most R*F + B faces; a pass runs every B/2 new faces and leaves
+    // B/2 of room for collapses deferred to a later pass. Bigger: better quality, more memory. Default 100000.
+    uint64_t batchFaces = 100000;
+    // R_i: rate of the initial phase (paper, section 4.2) used while R < R_i. Default 0.5.
+    double initialRatio = 0.5;
+    // Worker threads; 0: all cores. The output does not depend on it.
+    int threads = 0;
+    // Refuse to start (MemoryBudgetError naming the file) when the peak memory estimated from the
+    // grid's topology exceeds this many bytes; checked on the opened grid before any voxel is read
+    // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
+    uint64_t maxMemoryBytes = 0;
+};
+
+// Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget
+// for Options::maxMemoryBytes.
+uint64_t machineMemoryBytes();
+
+// One decimation pass, for plots of the intermediate mesh (paper, figures 5 and 9).
+struct DecimationRecord {
+    uint64_t facesGenerated = 0;   // F_g: faces extracted so far
+    uint64_t facesBefore = 0, facesAfter = 0;
+    uint64_t uncontractible = 0;   // F_u before the pass
+    uint64_t target = 0;           // F_t
+    uint32_t slab = 0;             // which slab's integrator ran it (the final pass: slab 0)
+};
+
+// What a run did; `--report` writes it as JSON.
+struct Report {
+    std::string file, grid, valueType, gridClass;
+    double iso = 0.0;
+    bool isoDefaulted = false;
+    double ratio = 0.0;               // effective R
+    uint64_t blocks = 0;
+    uint64_t facesFull = 0;           // F: faces of the full-resolution surface
+    uint64_t facesTarget = 0;
+    uint64_t facesOut = 0, vertsOut = 0;
+    uint64_t decimations = 0;
+    uint64_t maxIntermediateFaces = 0;
+    uint64_t maxUncontractibleFaces = 0;
+    uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
+    uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
+    double seconds = 0.0;
+    double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
+    double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
+    double peakRssMb = 0.0;
+    std::vector<DecimationRecord> trace;
+};
+
+// One field of the report, named as the program's --report JSON and the Python dict name it.
+struct ReportField {
+    enum class Kind { Text, Integer, Real };
+    std::string name;
+    Kind kind = Kind::Text;
+    std::string text;
+    uint64_t integer = 0;
+    double real = 0.0;
+};
+
+// Every field of a run's report, in the order --report writes them; the one list the program's JSON
+// and the Python dict are both made from. `options` gives the batch size the run used.
+std::vector<ReportField> reportFields(const Report& report, const Options& options);
+
+// Progress and cancellation, called from the in-order stage (never concurrently).
+class Progress {
+public:
+    virtual ~Progress() = default;
+    // fraction of blocks done in [0,1], faces currently kept. Return false to cancel (throws Cancelled).
+    virtual bool update(double fraction, uint64_t facesKept) = 0;
+};
+
+struct Result {
+    Mesh mesh;
+    Report report;
+};
+
+// Runs the whole pipeline on a file.
+// @throw InputError, EmptySurfaceError, Cancelled (errors.h); messages name the file and the problem.
+Result simplifyFile(const std::string& vdbPath, const Options& options, Progress* progress = nullptr);
+
+// Runs the whole pipeline on a grid in memory: a float or double grid with a linear transform (a
+// pyopenvdb grid, a grid built by the caller). The grid is only read, never changed. Options::gridName
+// is ignored; Report::file is empty and error messages name the grid instead of a file.
+// @throw InputError, EmptySurfaceError, Cancelled (errors.h).
+Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progress* progress = nullptr);
+
+// Receives the final mesh in pieces: begin() once with the finished report (vertsOut, facesOut give
+// the counts), then vertices() until all points are delivered, then triangles() (indices into the
+// points, counter-clockwise seen from outside), then end(). Each piece's storage is valid only during
+// the call. Lets a caller convert or upload the mesh without holding a second full copy of it.
+class MeshSink {
+public:
+    virtual ~MeshSink() = default;
+    virtual void begin(const Report& /*report*/) {}
+    virtual void vertices(const std::array<float, 3>* points, size_t count) = 0;
+    virtual void triangles(const std::array<uint32_t, 3>* triangles, size_t count) = 0;
+    virtual void end() {}
+};
+
+// Streaming variants: the mesh goes to `sink` (pieces of at most 65536 elements), the report is returned.
+Report simplifyFile(const std::string& vdbPath, const Options& options, MeshSink& sink, Progress* progress = nullptr);
+Report simplifyGrid(const openvdb::GridBase& grid, const Options& options, MeshSink& sink,
+                    Progress* progress = nullptr);
+
+} // namespace vdb_isosimp

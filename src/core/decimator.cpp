@@ -1,0 +1,767 @@
+#include "core/decimator.h"
+
+#include "vdb_isosimp/errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <iterator>
+#include <limits>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+namespace vdb_isosimp {
+
+namespace {
+
+using V3 = std::array<double, 3>;
+V3 sub(const V3& a, const V3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+V3 cross(const V3& a, const V3& b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
+double dot(const V3& a, const V3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// Faces whose area is this small relative to their squared edge lengths count as degenerate: a collapse
+// may not create one. (An equilateral triangle scores 0.29.)
+constexpr double kMinShape = 1e-5;
+// Below this, an existing face counts as degenerate (zero area, up to rounding) and is cleaned up.
+constexpr double kDegenerateShape = 1e-10;
+// Each face also anchors its corners: a point quadric of this fraction of its plane weight, so moving
+// a vertex costs a little for the distance from where its merged vertices were. Among collapses that
+// cost nothing on the planes (flat regions, straight edges, coincident twins where voxels sit at the
+// iso-value) the shortest then go first and survivors settle at the centroid of what they absorbed,
+// instead of exact ties broken by vertex index sweeping flat regions into fans (on exactly planar
+// data, a rotated box, that cost 6x the RMS error at R = 0.05). Far below the plane terms: a vertex
+// moved across a face keeps 1e-8 of the cost of moving it off the face's plane by the same distance.
+constexpr double kAnchorWeight = 1e-8;
+
+} // namespace
+
+uint32_t Decimator::newVertex(const std::array<double, 3>& p)
+{
+    uint32_t id;
+    if (!mFreeVerts.empty()) {
+        id = mFreeVerts.back();
+        mFreeVerts.pop_back();
+    } else {
+        id = uint32_t(mMeta.size());
+        mGeom.emplace_back();
+        mMeta.emplace_back();
+    }
+    mGeom[id] = {p, Quadric{}};
+    VertexMeta& v = mMeta[id];
+    ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
+    ++v.ring;
+    v.alive = true;
+    v.final = false;
+    v.head = kNone;
+    ++mVertexCount;
+    return id;
+}
+
+uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
+{
+    uint32_t id;
+    if (!mFreeFaces.empty()) {
+        id = mFreeFaces.back();
+        mFreeFaces.pop_back();
+    } else {
+        id = uint32_t(mFaces.size());
+        mFaces.emplace_back();
+    }
+    Face& f = mFaces[id];
+    f.v = v;
+    f.alive = true;
+    f.nonFinal = uint8_t(!mMeta[v[0]].final + !mMeta[v[1]].final + !mMeta[v[2]].final);
+    if (f.nonFinal) ++mUncontractibleFaces;
+    for (int k = 0; k < 3; ++k) {
+        f.next[k] = mMeta[v[k]].head;
+        mMeta[v[k]].head = 3 * id + uint32_t(k);
+    }
+    ++mFaceCount;
+    return id;
+}
+
+void Decimator::killFace(uint32_t id)
+{
+    Face& f = mFaces[id];
+    for (uint32_t k = 0; k < 3; ++k) {
+        // Unlink corner 3*id+k from its vertex's list (short: the vertex's valence).
+        const uint32_t corner = 3 * id + k;
+        uint32_t* link = &mMeta[f.v[k]].head;
+        while (*link != corner) link = &mFaces[*link / 3].next[*link % 3];
+        *link = f.next[k];
+    }
+    if (f.nonFinal) --mUncontractibleFaces;
+    f.alive = false;
+    mFreeFaces.push_back(id);
+    --mFaceCount;
+}
+
+void Decimator::killVertex(uint32_t v)
+{
+    VertexMeta& x = mMeta[v];
+    x.alive = false;
+    x.head = kNone;
+    ++x.version;
+    mFreeVerts.push_back(v);
+    --mVertexCount;
+}
+
+uint32_t Decimator::nextStamp()
+{
+    if (mStamp >= UINT32_MAX - 4) {
+        for (VertexMeta& v : mMeta) v.mark = 0;
+        mStamp = 0;
+    }
+    return ++mStamp;
+}
+
+void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
+{
+    // Each neighbour once, in ring-walk order; a stamp per vertex replaces sorting.
+    out.clear();
+    const uint32_t stamp = nextStamp();
+    for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        for (uint32_t x : mFaces[c / 3].v)
+            if (x != v && mMeta[x].mark != stamp) {
+                mMeta[x].mark = stamp;
+                out.push_back(x);
+            }
+}
+
+// The quadric of edge ab written around a's position (both ends' quadrics summed there).
+static Quadric edgeQuadric(const V3& pa, const Quadric& qa, const V3& pb, const Quadric& qb)
+{
+    Quadric q = qa;
+    q += qb.shifted(sub(pa, pb));
+    return q;
+}
+
+size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements], bool cheapestOnly) const
+{
+    const VertexGeom& va = mGeom[a];
+    const VertexGeom& vb = mGeom[b];
+    const Quadric q = edgeQuadric(va.p, va.q, vb.p, vb.q);
+    // Positions relative to a: the quadric's optimum where it is well conditioned, the best point of
+    // segment ab (where the optimum is not unique, along flat and straight regions, it picks the
+    // point the edge itself prefers), the ends and the midpoint.
+    const V3 d = sub(vb.p, va.p);
+    size_t n = 0;
+    V3 y;
+    if (q.optimum(y)) {
+        out[n++] = {y, 0};
+        // The optimum is the cheapest point there is.
+        if (cheapestOnly) {
+            out[0].cost = std::max(0.0, q.error(y));
+            return 1;
+        }
+    }
+    const double dAd = q.q[0] * d[0] * d[0] + q.q[4] * d[1] * d[1] + q.q[7] * d[2] * d[2] +
+                       2 * (q.q[1] * d[0] * d[1] + q.q[2] * d[0] * d[2] + q.q[5] * d[1] * d[2]);
+    const double bd = q.q[3] * d[0] + q.q[6] * d[1] + q.q[8] * d[2];
+    if (dAd > 0) {
+        const double t = -bd / dAd;
+        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0};
+    }
+    out[n++] = {{0, 0, 0}, 0};
+    out[n++] = {d, 0};
+    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0};
+    for (size_t i = 0; i < n; ++i) {
+        out[i].cost = std::max(0.0, q.error(out[i].p));
+        out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
+    }
+    // Cheapest first; ties keep the order above.
+    std::stable_sort(out, out + n, [](const Placement& x, const Placement& y) { return x.cost < y.cost; });
+    return n;
+}
+
+void Decimator::push(uint32_t a, uint32_t b)
+{
+    // The cheapest placement, valid or not: a lower bound on what the collapse will cost (collapse()
+    // checks validity and sends the pair back when a valid placement costs more).
+    Placement p[kPlacements];
+    placements(a, b, p, true);
+    pushAt(a, b, p[0].cost);
+}
+
+void Decimator::pushAt(uint32_t a, uint32_t b, double cost)
+{
+    const float f = float(cost);
+    uint32_t bits;
+    std::memcpy(&bits, &f, sizeof bits);
+    mHeap.push(Candidate::make(bits, a, b, mMeta[a].version + mMeta[b].version));
+}
+
+bool Decimator::edgeExists(uint32_t a, uint32_t b) const
+{
+    if (!mMeta[a].alive || !mMeta[b].alive || !mMeta[a].final || !mMeta[b].final) return false;
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        const auto& fv = mFaces[c / 3].v;
+        if (fv[0] == b || fv[1] == b || fv[2] == b) return true;
+    }
+    return false;
+}
+
+bool Decimator::liveFinalPair(uint32_t a, uint32_t b) const
+{
+    return mMeta[a].alive && mMeta[b].alive && mMeta[a].final && mMeta[b].final;
+}
+
+bool Decimator::current(const Candidate& c) const
+{
+    const VertexMeta& va = mMeta[c.a()];
+    const VertexMeta& vb = mMeta[c.b];
+    return va.alive && vb.alive && va.version + vb.version == c.stamp;
+}
+
+void Decimator::finalize(uint32_t v)
+{
+    VertexMeta& vx = mMeta[v];
+    vx.final = true;
+    ++mFinalizations;
+    for (uint32_t c = vx.head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        if (--mFaces[c / 3].nonFinal == 0) --mUncontractibleFaces;
+    neighbours(v, mScratchA);
+    for (uint32_t n : mScratchA)
+        if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
+}
+
+bool Decimator::collapseCheapestEdge(uint32_t f, bool aroundFace)
+{
+    // The face's own edges, or with aroundFace the other edges at its corners: where the link condition
+    // refuses every edge of a zero-area face (twins on a voxel corner with a third common neighbour),
+    // collapsing a neighbouring edge first changes what the link condition sees.
+    const auto v = mFaces[f].v;
+    std::vector<std::pair<uint32_t, uint32_t>> edges;
+    if (!aroundFace) {
+        for (int k = 0; k < 3; ++k) edges.push_back({std::min(v[k], v[(k + 1) % 3]), std::max(v[k], v[(k + 1) % 3])});
+    } else {
+        for (uint32_t x : v) {
+            neighbours(x, mScratchB);
+            for (uint32_t n : mScratchB)
+                if (n != v[0] && n != v[1] && n != v[2]) edges.push_back({std::min(x, n), std::max(x, n)});
+        }
+    }
+    double best = std::numeric_limits<double>::infinity();
+    std::pair<uint32_t, uint32_t> pick{kNone, kNone};
+    for (const auto& [a, b] : edges) {
+        double cost;
+        if (!mMeta[a].final || !mMeta[b].final || collapse(a, b, -1.0f, &cost) != Outcome::Costlier) continue;
+        if (cost < best) {
+            best = cost;
+            pick = {a, b};
+        }
+    }
+    if (pick.first == kNone) return false;
+    return collapse(pick.first, pick.second, std::numeric_limits<float>::infinity(), nullptr) == Outcome::Collapsed;
+}
+
+void Decimator::addBlock(const BlockMesh& block)
+{
+    std::vector<uint32_t> ids(block.keys.size());
+    for (size_t i = 0; i < block.keys.size(); ++i) {
+        auto it = mOpen.find(block.keys[i]);
+        if (it != mOpen.end()) {
+            ids[i] = it->second;
+        } else {
+            ids[i] = newVertex(block.positions[i]);
+            mOpen.emplace(block.keys[i], ids[i]);
+        }
+    }
+    for (const auto& t : block.triangles) {
+        const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
+        newFace(v);
+        // Area-weighted plane quadric of the face, and its anchor, added to its three corners.
+        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
+        const double len = std::sqrt(dot(n, n));
+        if (len > 0) {
+            const V3 u{n[0] / len, n[1] / len, n[2] / len};
+            const double d = -dot(u, mGeom[v[0]].p);
+            for (uint32_t x : v) {
+                // The plane around each corner (it passes through all three, up to rounding).
+                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
+                mGeom[x].q.addPoint(kAnchorWeight * 0.5 * len);
+            }
+        }
+    }
+    for (size_t i = 0; i < block.keys.size(); ++i)
+        if (block.finalAfterBlock[i]) {
+            mOpen.erase(block.keys[i]);
+            finalize(ids[i]);
+        }
+}
+
+void Decimator::absorb(Decimator& other)
+{
+    // The merge is the peak of a run at R = 0.2, so each part of `other` is freed as soon as it has
+    // been copied. First what needs its vertices besides the vertices themselves: the queued edges
+    // (with whether each is stale) and the refused pairs whose ends live.
+    std::vector<Candidate> carried;
+    carried.reserve(other.mHeap.size());
+    for (const Candidate& c : other.mHeap)
+        if (other.mMeta[c.a()].alive && other.mMeta[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
+    other.mHeap.clear();
+    other.mHeap.shrinkToFit();
+    std::vector<Refused> refused;
+    for (const Refused& r : other.mRefused)
+        if (other.mMeta[r.a].alive && other.mMeta[r.b].alive) refused.push_back(r);
+
+    std::vector<uint32_t> remap(other.mMeta.size(), UINT32_MAX);
+    // Open vertices first, in key order (hash-map order is not part of the output contract).
+    std::vector<std::pair<EdgeKey, uint32_t>> open(other.mOpen.begin(), other.mOpen.end());
+    std::sort(open.begin(), open.end());
+    for (const auto& [key, id] : open) {
+        auto it = mOpen.find(key);
+        if (it != mOpen.end()) {
+            remap[id] = it->second;
+            VertexGeom& mine = mGeom[it->second];
+            const VertexGeom& theirs = other.mGeom[id];
+            mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
+        } else {
+            remap[id] = newVertex(other.mGeom[id].p);
+            mGeom[remap[id]].q = other.mGeom[id].q;
+            mOpen.emplace(key, remap[id]);
+        }
+    }
+    constexpr size_t kVertChunk = decltype(other.mMeta)::kChunk, kFaceChunk = decltype(other.mFaces)::kChunk;
+    static_assert(kVertChunk == decltype(other.mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
+    for (uint32_t v = 0; v < other.mMeta.size(); ++v) {
+        if (other.mMeta[v].alive && remap[v] == UINT32_MAX) {
+            remap[v] = newVertex(other.mGeom[v].p);
+            mGeom[remap[v]].q = other.mGeom[v].q;
+            mMeta[remap[v]].final = other.mMeta[v].final;
+        }
+        if ((v + 1) % kVertChunk == 0) {
+            other.mGeom.releaseChunk(v / kVertChunk);
+            other.mMeta.releaseChunk(v / kVertChunk);
+        }
+    }
+    // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
+    // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
+    // Reserved with room for the seam's edges only: doubling could leave half of the largest array of
+    // the run unused.
+    mHeap.reserve(mHeap.size() + carried.size() + carried.size() / 16 + 4096);
+    const bool pushEach = mHeap.size() > carried.size();
+    for (const Candidate& c : carried) {
+        const uint32_t a = remap[c.a()], b = remap[c.b];
+        // An entry that was stale stays stale (re-evaluated when popped).
+        const uint32_t stamp = mMeta[a].version + mMeta[b].version - c.stamp;
+        // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
+        // smaller one they are appended and the whole is ordered once when next used.
+        const Candidate e = Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp);
+        if (pushEach) mHeap.push(e);
+        else mHeap.append(e);
+    }
+    carried = {};
+    // Refused entries come along marked as changed: retried in the next pass.
+    for (const Refused& r : refused) {
+        const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
+        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1});
+    }
+    for (size_t i = 0; i < other.mFaces.size(); ++i) {
+        const Face& f = other.mFaces[i];
+        if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+        if ((i + 1) % kFaceChunk == 0) other.mFaces.releaseChunk(i / kFaceChunk);
+    }
+    other = Decimator{};
+}
+
+size_t Decimator::finalizeRemaining()
+{
+    return finalizeOpen([](EdgeKey) { return true; });
+}
+
+size_t Decimator::finalizeOpen(const std::function<bool(EdgeKey)>& which)
+{
+    std::vector<uint32_t> open;
+    for (auto it = mOpen.begin(); it != mOpen.end();) {
+        if (which(it->first)) {
+            open.push_back(it->second);
+            it = mOpen.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    std::sort(open.begin(), open.end());  // map order is not deterministic across runs
+    for (uint32_t v : open) finalize(v);
+    return open.size();
+}
+
+bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const
+{
+    for (uint32_t c = mMeta[moved].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        const auto& fv = mFaces[c / 3].v;
+        if (fv[0] == other || fv[1] == other || fv[2] == other) continue;  // removed by the collapse
+        V3 q[3];
+        for (int i = 0; i < 3; ++i) q[i] = fv[i] == moved ? p : mGeom[fv[i]].p;
+        const V3 nNew = cross(sub(q[1], q[0]), sub(q[2], q[0]));
+        const double edges = dot(sub(q[1], q[0]), sub(q[1], q[0])) + dot(sub(q[2], q[1]), sub(q[2], q[1])) +
+                             dot(sub(q[0], q[2]), sub(q[0], q[2]));
+        const double lenNew = std::sqrt(dot(nNew, nNew));
+        const V3& a = mGeom[fv[0]].p;
+        const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
+        const double lenOld = std::sqrt(dot(nOld, nOld));
+        if (!(lenNew > kMinShape * edges)) {
+            // A face that was already degenerate (values exactly at the iso-value make coincident
+            // vertices) may stay so: refusing would pin it forever instead of letting it be collapsed.
+            const double edgesOld = dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
+                                    dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
+                                    dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
+            if (lenOld > kMinShape * edgesOld) return false;
+            continue;
+        }
+        if (lenOld > 0 && dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew) return false;
+    }
+    return true;
+}
+
+Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
+{
+    // The two faces on edge ab and their opposite corners; the valence of a on the way.
+    uint32_t shared[2], opposite[2];
+    int ns = 0;
+    size_t valenceA = 0, valenceB = 0;
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
+        const auto& fv = mFaces[c / 3].v;
+        if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
+        if (ns == 2) return Outcome::Refused;  // non-manifold edge
+        shared[ns] = c / 3;
+        opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
+    }
+    if (ns != 2 || opposite[0] == opposite[1]) return Outcome::Refused;
+    // Link condition: the only common neighbours of a and b are the two opposite corners. The rings
+    // are walked once with stamps: mScratchA gets the union of both rings (what needs requeueing).
+    const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
+    std::vector<uint32_t>& ring = mScratchA;
+    ring.clear();
+    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+        for (uint32_t x : mFaces[c / 3].v)
+            if (x != a && mMeta[x].mark != inA) {
+                mMeta[x].mark = inA;
+                ring.push_back(x);
+            }
+    size_t common = 0;
+    for (uint32_t c = mMeta[b].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceB)
+        for (uint32_t x : mFaces[c / 3].v) {
+            if (x == b) continue;
+            uint32_t& m = mMeta[x].mark;
+            if (m == inA) {
+                m = inBoth;
+                ++common;
+            } else if (m != inBoth && m != inB) {
+                m = inB;
+                ring.push_back(x);
+            }
+        }
+    if (common != 2) return Outcome::Refused;
+    // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
+    auto hasFaceWith = [&](uint32_t v) {
+        for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
+            const bool c0 = fv[0] == opposite[0] || fv[1] == opposite[0] || fv[2] == opposite[0];
+            const bool c1 = fv[0] == opposite[1] || fv[1] == opposite[1] || fv[2] == opposite[1];
+            if (c0 && c1) return true;
+        }
+        return false;
+    };
+    if (hasFaceWith(a) && hasFaceWith(b)) return Outcome::Refused;
+    // The cheapest placement that keeps every face valid. Its cost, not the bound the pair was queued
+    // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
+    // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
+    Placement places[kPlacements];
+    const size_t count = placements(a, b, places, false);
+    size_t place = 0;
+    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
+    if (place == count) return Outcome::Refused;
+    if (cost) *cost = places[place].cost;
+    if (float(places[place].cost) > maxCost) return Outcome::Costlier;
+    const V3 target = places[place].p;
+
+    // Keep the end with more faces (a shorter list to relink); the other one dies.
+    const uint32_t keep = valenceA >= valenceB ? a : b;
+    const uint32_t gone = keep == a ? b : a;
+    killFace(shared[0]);
+    killFace(shared[1]);
+    VertexMeta& vk = mMeta[keep];
+    const VertexMeta& vg = mMeta[gone];
+    // Hand gone's corners to keep: rename, then splice gone's list in front of keep's.
+    uint32_t last = kNone;
+    for (uint32_t c = vg.head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+        mFaces[c / 3].v[c % 3] = keep;
+        last = c;
+    }
+    if (last != kNone) {
+        mFaces[last / 3].next[last % 3] = vk.head;
+        vk.head = vg.head;
+    }
+    VertexGeom& gk = mGeom[keep];
+    const VertexGeom& gg = mGeom[gone];
+    gk.q = edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p));
+    gk.p = target;
+    ++vk.version;
+    ++vk.ring;
+    for (uint32_t n : ring) ++mMeta[n].ring;
+    killVertex(gone);
+    // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
+    // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
+    const uint32_t brought = gone == a ? inA : inB;
+    for (uint32_t n : ring)
+        if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
+    return Outcome::Collapsed;
+}
+
+size_t Decimator::decimateTo(size_t targetFaces)
+{
+    size_t collapses = 0;
+    // Edges refused earlier (link condition, fold-overs) get another chance once the faces around an
+    // end have changed; the others stay refused without a queue round trip.
+    size_t kept = 0;
+    for (const Refused& r : mRefused) {
+        if (!mMeta[r.a].alive || !mMeta[r.b].alive) continue;
+        if (mMeta[r.a].ring + mMeta[r.b].ring == r.stamp) mRefused[kept++] = r;
+        else if (edgeExists(r.a, r.b)) push(r.a, r.b);
+    }
+    mRefused.resize(kept);
+    while (mFaceCount > targetFaces && !mHeap.empty()) {
+        if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
+        const Candidate c = mHeap.pop();
+        const uint32_t a = c.a(), b = c.b;
+        if (!current(c)) {
+            // An end changed since the entry was queued: requeue at today's cost (it comes straight
+            // back if it is still the cheapest). No ring walk to check the pair is still an edge: an
+            // edge between two living vertices never disappears (a collapse renames the dead end's
+            // edges, it removes none of the survivor's), so it is one unless a dead end's slot went to
+            // a new vertex meanwhile (3% of these pairs on noise). collapse() finds no shared face
+            // for such a pair and refuses it, so they cost one attempt and change no collapse.
+            if (liveFinalPair(a, b)) push(a, b);
+            continue;
+        }
+        ++mAttempts;
+        double cost;
+        switch (collapse(a, b, c.cost(), &cost)) {
+        case Outcome::Collapsed: ++collapses; break;
+        case Outcome::Refused: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
+        case Outcome::Costlier: pushAt(a, b, cost); break;
+        }
+    }
+    // Entries of dead vertices pile up; drop them when they dominate the queue.
+    if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
+    return collapses;
+}
+
+bool Decimator::degenerate(uint32_t f) const
+{
+    // Far flatter than the slivers collapses may not create (kMinShape): a face of a sphere squeezed
+    // to 1e-6 of its width on two axes scores about 1e-6 and is no defect, only a thin shape.
+    const auto& v = mFaces[f].v;
+    const V3 &p0 = mGeom[v[0]].p, &p1 = mGeom[v[1]].p, &p2 = mGeom[v[2]].p;
+    const V3 n = cross(sub(p1, p0), sub(p2, p0));
+    const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
+    if (!(std::sqrt(dot(n, n)) > kDegenerateShape * edges)) return true;
+    // The output is float: a tiny face can still collapse to zero area when rounded.
+    auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
+    const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
+    const V3 m = cross(sub(q1, q0), sub(q2, q0));
+    return 0.25 * dot(m, m) <= mZeroArea * mZeroArea;
+}
+
+bool Decimator::dropFlatComponent(uint32_t seed)
+{
+    // Only tiny closed components (a tetrahedron of vertices a hair apart, where one voxel sits at
+    // the iso-value) can be all flat and beyond any legal collapse; look no further than 16 faces.
+    std::vector<uint32_t> faces{seed}, verts;
+    for (size_t i = 0; i < faces.size(); ++i) {
+        if (!degenerate(faces[i])) return false;
+        for (uint32_t v : mFaces[faces[i]].v) {
+            if (std::find(verts.begin(), verts.end(), v) == verts.end()) verts.push_back(v);
+            for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+                if (const uint32_t g = c / 3; std::find(faces.begin(), faces.end(), g) == faces.end()) {
+                    if (faces.size() == 16) return false;
+                    faces.push_back(g);
+                }
+        }
+    }
+    for (uint32_t f : faces) killFace(f);
+    for (uint32_t v : verts) killVertex(v);
+    return true;
+}
+
+bool Decimator::openPinch(uint32_t f)
+{
+    // Where the surface touches itself at one voxel corner (values exactly at the iso-value on both
+    // sides of it), no collapse keeps the mesh manifold: the link condition refuses every edge near the
+    // twins. One corner moves off the other by 1e-5 of the diagonal, along the normal of its own faces,
+    // which opens the pinch and gives the face an area without moving the surface visibly.
+    const double step = 1e-5 * std::sqrt(mZeroArea / 1e-12);
+    for (int k = 0; k < 3; ++k) {
+        const uint32_t x = mFaces[f].v[k];
+        V3 normal{0, 0, 0};
+        for (uint32_t c = mMeta[x].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
+            const V3 n = cross(sub(mGeom[fv[1]].p, mGeom[fv[0]].p), sub(mGeom[fv[2]].p, mGeom[fv[0]].p));
+            for (int i = 0; i < 3; ++i) normal[i] += n[i];
+        }
+        const double len = std::sqrt(dot(normal, normal));
+        if (!(len > 0)) continue;
+        for (double sign : {1.0, -1.0}) {
+            const V3 old = mGeom[x].p;
+            const V3 p{old[0] + sign * step * normal[0] / len, old[1] + sign * step * normal[1] / len, old[2] + sign * step * normal[2] / len};
+            if (!facesStayValid(x, kNone, p)) continue;
+            mGeom[x].p = p;
+            if (degenerate(f)) {
+                mGeom[x].p = old;
+                continue;
+            }
+            mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
+            ++mMeta[x].version;
+            ++mMeta[x].ring;
+            return true;
+        }
+    }
+    return false;
+}
+
+size_t Decimator::removeDegenerateFaces()
+{
+    // A zero-area face has no normal worth keeping, but its neighbours do: any turn short of a fold
+    // is allowed. (Letting faces fold here turned a needle-thin sphere, 1e-6 voxels on two axes and
+    // all slivers, inside out.)
+    const double savedCos = mMinNormalCos;
+    mMinNormalCos = 0.0;
+    // Zero area also means tiny next to the whole surface: 1e-12 of the squared bounding-box diagonal
+    // (vertices a hair apart around one voxel corner make such faces with a fair shape).
+    V3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (uint32_t v = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive)
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], mGeom[v].p[k]);
+                hi[k] = std::max(hi[k], mGeom[v].p[k]);
+            }
+    const V3 diagonal = sub(hi, lo);
+    mZeroArea = mVertexCount ? 1e-12 * dot(diagonal, diagonal) : 0.0;
+    // Faces are found by a parallel scan and visited in face order, as a serial scan would. Collapses
+    // here cannot make a face degenerate in double (facesStayValid), only, rarely, after rounding to
+    // float: so the scan is repeated until a round over its finds changes nothing.
+    std::vector<uint8_t> flat;
+    std::vector<uint32_t> candidates;
+    size_t remaining = 0;
+    for (bool rescan = true; rescan;) {
+        flat.assign(mFaces.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096),
+                          [&](const tbb::blocked_range<uint32_t>& r) {
+                              for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive && degenerate(f);
+                          });
+        candidates.clear();
+        for (uint32_t f = 0; f < flat.size(); ++f)
+            if (flat[f]) candidates.push_back(f);
+        rescan = false;
+        for (bool progress = true; progress;) {
+            progress = false;
+            remaining = 0;
+            for (uint32_t f : candidates) {
+                if (!mFaces[f].alive || !degenerate(f)) continue;
+                if (collapseCheapestEdge(f, false) || dropFlatComponent(f) || collapseCheapestEdge(f, true) || openPinch(f))
+                    progress = rescan = true;
+                else
+                    ++remaining;
+            }
+        }
+    }
+    mMinNormalCos = savedCos;
+    mZeroArea = 0.0;
+    return remaining;
+}
+
+size_t Decimator::dropSmallComponents(size_t targetFaces)
+{
+    if (mFaceCount <= targetFaces) return 0;
+    // Components by union-find over the vertices of live faces.
+    std::vector<uint32_t> parent(mMeta.size());
+    for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
+    auto find = [&](uint32_t v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (const Face& f : mFaces)
+        if (f.alive) {
+            parent[find(f.v[1])] = find(f.v[0]);
+            parent[find(f.v[2])] = find(f.v[0]);
+        }
+    struct Component { double area = 0; uint32_t firstFace = UINT32_MAX; std::vector<uint32_t> faces; };
+    std::vector<Component> comps;
+    std::vector<int64_t> index(mMeta.size(), -1);
+    for (uint32_t f = 0; f < mFaces.size(); ++f) {
+        if (!mFaces[f].alive) continue;
+        const uint32_t root = find(mFaces[f].v[0]);
+        if (index[root] < 0) {
+            index[root] = int64_t(comps.size());
+            comps.emplace_back();
+            comps.back().firstFace = f;
+        }
+        Component& c = comps[size_t(index[root])];
+        const auto& v = mFaces[f].v;
+        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
+        c.area += 0.5 * std::sqrt(dot(n, n));
+        c.faces.push_back(f);
+    }
+    if (comps.size() < 2) return 0;
+    std::sort(comps.begin(), comps.end(), [](const Component& a, const Component& b) {
+        return a.area != b.area ? a.area < b.area : a.firstFace < b.firstFace;
+    });
+    size_t dropped = 0;
+    for (size_t i = 0; i + 1 < comps.size() && mFaceCount > targetFaces; ++i) {
+        std::vector<uint32_t> verts;
+        for (uint32_t f : comps[i].faces) {
+            for (uint32_t v : mFaces[f].v) verts.push_back(v);
+            killFace(f);
+        }
+        std::sort(verts.begin(), verts.end());
+        verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+        for (uint32_t v : verts) killVertex(v);
+        ++dropped;
+    }
+    return dropped;
+}
+
+void Decimator::dropDeadEntries()
+{
+    // A pair of live vertices is still an edge (see decimateTo): no ring walk per entry.
+    mHeap.eraseIf([&](const Candidate& c) { return !liveFinalPair(c.a(), c.b); });
+}
+
+void Decimator::compactQueue()
+{
+    dropDeadEntries();
+    mHeap.shrinkToFit();
+}
+
+void Decimator::requeueAll()
+{
+    mHeap.clear();
+    mRefused.clear();
+    for (uint32_t v = 0; v < mMeta.size(); ++v) {
+        if (!mMeta[v].alive || !mMeta[v].final) continue;
+        neighbours(v, mScratchB);
+        for (uint32_t n : mScratchB)
+            if (n > v && mMeta[n].final) push(v, n);
+    }
+}
+
+Mesh Decimator::mesh() const
+{
+    Mesh m;
+    m.points.reserve(mVertexCount);
+    m.triangles.reserve(mFaceCount);
+    std::vector<uint32_t> remap(mMeta.size(), UINT32_MAX);
+    // Vertices and faces in slot order: deterministic for a deterministic input sequence.
+    for (uint32_t v = 0; v < mMeta.size(); ++v) {
+        if (!mMeta[v].alive) continue;
+        remap[v] = uint32_t(m.points.size());
+        m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
+    }
+    for (const Face& f : mFaces)
+        if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+    return m;
+}
+
+} // namespace vdb_isosimp

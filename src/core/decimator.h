@@ -1,0 +1,205 @@
+// Incremental QEM decimator: the intermediate iso-surface, grown block by block and decimated in place.
+//
+// Garland & Heckbert, "Surface simplification using quadric error metrics" (1997), applied on the fly
+// as in Hou & Chen, "On-the-fly simplification of large iso-surfaces with per-cube vertex modifiability
+// detection": quadrics are accumulated as faces arrive and kept across batches; one persistent priority
+// queue holds the edges whose two ends are final (modifiability.h), with lazy invalidation by per-vertex
+// version numbers. A collapse moves the survivor to the cheapest of the quadric's optimum, the best point
+// of the edge, its ends and midpoint that keeps every face valid, and is charged that placement's cost;
+// it is refused when it would break the link condition (the mesh stays 2-manifold), or when no
+// placement avoids flipping or degenerating a face.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "core/chunked_vector.h"
+#include "core/marching_cubes.h"
+#include "core/quad_heap.h"
+#include "core/quadric.h"
+#include "vdb_isosimp/mesh.h"
+
+namespace vdb_isosimp {
+
+class Decimator {
+public:
+    // Welds the block's vertices to the open frontier by edge key, adds its faces and their quadrics,
+    // then marks the block's final vertices and queues the edges that became contractible.
+    void addBlock(const BlockMesh& block);
+
+    // Collapses the cheapest contractible edges until at most `targetFaces` faces remain or no legal
+    // collapse is left. Returns the number of collapses made.
+    size_t decimateTo(size_t targetFaces);
+
+    // Moves another decimator's mesh into this one (slab merge). Open vertices with the same edge key
+    // are welded and their quadrics summed; `other` is left empty. Its queued edges come along; edges
+    // at welded vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
+    void absorb(Decimator& other);
+
+    // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
+    // where every slab's queue is copied).
+    void compactQueue();
+    size_t queued() const { return mHeap.size(); }
+
+    // End of the volume: every vertex still open becomes final (none should remain in an unbounded
+    // domain; the count is returned so tests can check it).
+    size_t finalizeRemaining();
+    // The open vertices whose edge key `which` accepts become final (in id order); returns how many.
+    size_t finalizeOpen(const std::function<bool(EdgeKey)>& which);
+
+    // Collapses the cheapest legal edge of every zero-area face left over (area at most 1e-12 of the
+    // squared bounding-box diagonal: coincident vertices where voxels sit at the iso-value), and drops
+    // tiny components that are flat all over (no area, no volume). Returns how many remain.
+    size_t removeDegenerateFaces();
+
+    // Last resort when edge collapses cannot reach the target (many small closed components, each
+    // already minimal, as in noisy CT data): removes whole components, smallest area first, never the
+    // largest one, until at most `targetFaces` remain. Returns the number of components removed.
+    size_t dropSmallComponents(size_t targetFaces);
+
+    // Requeues every contractible edge: edges refused earlier may have become legal since.
+    void requeueAll();
+
+    // Largest turn of a face normal a collapse may cause, as a cosine. Default: about 80 degrees. The
+    // final pass relaxes it when small closed components (noise, scans) would otherwise keep the
+    // mesh above its target.
+    void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
+
+    // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
+    // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
+    void setInterrupter(std::function<bool()> stop) { mStop = std::move(stop); }
+
+    size_t faceCount() const { return mFaceCount; }
+    size_t vertexCount() const { return mVertexCount; }
+    size_t uncontractibleFaces() const { return mUncontractibleFaces; }
+    size_t openVertices() const { return mOpen.size(); }
+    uint64_t finalizations() const { return mFinalizations; }
+    // Collapses tried by decimateTo(), legal or not: the work a pass did beyond queue upkeep.
+    uint64_t collapseAttempts() const { return mAttempts; }
+
+    // The surviving mesh, compacted, vertices in creation order.
+    Mesh mesh() const;
+
+private:
+    // Adjacency without per-vertex containers: every face corner (3 * face + k) is linked into a list
+    // of the corners that share its vertex, headed at the vertex. No allocation per vertex or face,
+    // and a vertex's faces are walked by following `next`.
+    static constexpr uint32_t kNone = UINT32_MAX;
+    // A vertex in two arrays: what the queue and the ring walks read on every step (20 bytes, three
+    // to a cache line) apart from the geometry the cost and fold checks need (104 bytes).
+    // One 88-byte record made every queue check load a line or two of position and quadric it did
+    // not use.
+    struct VertexGeom {
+        std::array<double, 3> p{};
+        // Written around p, where the planes of the vertex's own faces have no linear or constant
+        // part, so precision does not depend on how far the mesh is from the origin. In double: a
+        // float quadric of a large flat region (area 1e3, rank 1) carries rounding noise of 1e-4 in
+        // its other directions, as large as the cost of cutting a sharp edge, and let collapses swing
+        // triangles across edges as if they were free.
+        Quadric q;
+    };
+    struct VertexMeta {
+        uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
+        uint32_t head = kNone; // first corner of this vertex
+        uint32_t mark = 0;     // scratch stamp for ring walks (dedupe without sorting)
+        // Bumped whenever a face around the vertex changes (a collapse at it or at a neighbour): a
+        // refused collapse can only become legal once this changes at one of its ends.
+        uint32_t ring = 0;
+        bool alive = false;
+        bool final = false;
+    };
+    struct Face {
+        std::array<uint32_t, 3> v{};
+        std::array<uint32_t, 3> next{};  // next corner of the same vertex, per corner
+        uint8_t nonFinal = 0;  // how many of v are not final yet; > 0 makes the face uncontractible
+        bool alive = false;
+    };
+    // A queued edge, 16 bytes so four siblings of the 4-ary heap share a cache line. `stamp` is the sum
+    // of both versions at push time: versions only grow, so an unchanged sum means neither end changed.
+    // The placement is recomputed when the entry is popped (the quadrics are the same then).
+    struct Candidate {
+        uint64_t key;  // cost (float bits) << 32 | lower end
+        uint32_t b, stamp;
+        uint32_t a() const { return uint32_t(key); }
+        float cost() const
+        {
+            const uint32_t bits = costBits();
+            float f;
+            std::memcpy(&f, &bits, sizeof f);
+            return f;
+        }
+        uint32_t costBits() const { return uint32_t(key >> 32); }
+        static Candidate make(uint32_t costBits, uint32_t a, uint32_t b, uint32_t stamp)
+        {
+            return {uint64_t(costBits) << 32 | a, b, stamp};
+        }
+        // Queue order: cost, then the lower end, then the higher one, so the collapse sequence never
+        // depends on heap internals. Cost and lower end share one 64-bit key (non-negative floats
+        // order like their bits): the hottest comparison is one integer compare.
+        bool operator<(const Candidate& o) const { return key != o.key ? key < o.key : b < o.b; }
+    };
+
+    uint32_t newVertex(const std::array<double, 3>& p);
+    uint32_t newFace(const std::array<uint32_t, 3>& v);
+    void killFace(uint32_t f);
+    void killVertex(uint32_t v);
+    void finalize(uint32_t v);
+    uint32_t nextStamp();
+    void neighbours(uint32_t v, std::vector<uint32_t>& out);
+    // A candidate position of a collapse's survivor and the edge quadric's error there.
+    struct Placement {
+        std::array<double, 3> p;
+        double cost;
+    };
+    static constexpr size_t kPlacements = 5;
+    // The candidates of edge ab, cheapest first; returns how many (at most kPlacements). With
+    // cheapestOnly, out[0] is the cheapest (for the queue's cost) and may be the only one.
+    size_t placements(uint32_t a, uint32_t b, Placement out[kPlacements], bool cheapestOnly) const;
+    void push(uint32_t a, uint32_t b);
+    void pushAt(uint32_t a, uint32_t b, double cost);
+    bool current(const Candidate& c) const;
+    bool edgeExists(uint32_t a, uint32_t b) const;
+    bool liveFinalPair(uint32_t a, uint32_t b) const;
+    void dropDeadEntries();
+    // Collapses the edge of face f (with aroundFace: the other edges at its corners) whose cheapest
+    // valid placement costs least; for zero-area faces.
+    bool collapseCheapestEdge(uint32_t f, bool aroundFace);
+    bool openPinch(uint32_t f);
+    enum class Outcome { Collapsed, Refused, Costlier };
+    // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
+    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
+    Outcome collapse(uint32_t a, uint32_t b, float maxCost, double* cost);
+    bool degenerate(uint32_t f) const;
+    bool dropFlatComponent(uint32_t seedFace);
+    bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
+
+    ChunkedVector<VertexGeom> mGeom;
+    ChunkedVector<VertexMeta> mMeta;
+    ChunkedVector<Face> mFaces;
+    std::vector<uint32_t> mFreeVerts, mFreeFaces;
+    std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
+    QuadHeap<Candidate> mHeap;
+    // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
+    // the sum of both ends' ring counters at refusal. (Closed tetrahedra in noisy data, refused at every
+    // batch, were a quarter of all collapse attempts before.)
+    struct Refused {
+        uint32_t a, b, stamp;
+    };
+    std::vector<Refused> mRefused;
+
+    size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
+    uint64_t mFinalizations = 0, mAttempts = 0;
+    double mMinNormalCos = 0.17;
+    double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
+    std::function<bool()> mStop;
+    uint64_t mPolls = 0;
+    uint32_t mStamp = 0;
+    std::vector<uint32_t> mScratchA, mScratchB;
+};
+
+} // namespace vdb_isosimp

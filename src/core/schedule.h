@@ -1,0 +1,143 @@
+// The decimation schedule of the paper's section 4.2, for one slab: blocks are integrated in order and
+// the mesh is decimated every few batches, so that it never holds more than R*F + B faces.
+#pragma once
+#include "core/decimator.h"
+#include "core/edge_key.h"
+#include "core/marching_cubes.h"
+#include "vdb_isosimp/vdb_isosimp.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+namespace vdb_isosimp {
+
+// What one slab's integrator measured; merged into the Report in slab order.
+struct SlabStats {
+    uint64_t decimations = 0, maxIntermediateFaces = 0, maxUncontractibleFaces = 0;
+    std::vector<DecimationRecord> trace;
+};
+
+// Serial, in-order stage of one slab: integration and the decimation schedule of the paper's
+// section 4.2, with B faces per batch, one step beyond it: half of B is deferral room. A pass runs
+// every B/2 new faces and stops B/2 above the paper's target F_t, so the costliest collapses of a pass
+// wait in the queue, where a later pass (the final one at the latest) weighs them against the rest of
+// the surface. The intermediate mesh keeps the paper's bound, F_t + B. (A batch held to F_t pays for
+// the face budget with its own sharpest features even where another batch has cheaper collapses.)
+class Integrator {
+public:
+    Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
+        : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab)
+    {
+        mInitial = ratio < o.initialRatio;
+    }
+
+    void add(const BlockMesh& b)
+    {
+        const uint64_t incoming = b.triangles.size();
+        if (incoming == 0 && b.keys.empty()) return;
+        if (mInitial) {
+            // Initial phase: let the intermediate mesh grow to B faces, then decimate it at rate R_i,
+            // until the regular target catches up (avoids over-decimating the first batches). Never
+            // below the regular target: the final mesh must still be able to reach R*F.
+            if (mDec.faceCount() + incoming > mBatch && mDec.faceCount() > 0) {
+                const uint64_t initial = phaseTarget(double(mDec.faceCount()), mOpt.initialRatio);
+                const uint64_t regular = batchTarget(double(mFacesGenerated));
+                if (regular >= initial) mInitial = false;
+                decimate(std::max(initial, regular));
+                mSinceLast = 0;
+            }
+        } else if (mSinceLast + incoming > mBatch - mDefer && mSinceLast > 0) {
+            decimate(batchTarget(double(mFacesGenerated)));
+            mSinceLast = 0;
+        }
+        mDec.addBlock(b);
+        mFacesGenerated += incoming;
+        mSinceLast += incoming;
+        mStats.maxIntermediateFaces = std::max<uint64_t>(mStats.maxIntermediateFaces, mDec.faceCount());
+    }
+
+    // The last pass over the whole (merged) surface: every vertex is final now.
+    void finish(uint64_t targetFaces, uint64_t facesGenerated, uint64_t& unfinalized)
+    {
+        mFacesGenerated = facesGenerated;
+        unfinalized = mDec.finalizeRemaining();
+        // The merged queue holds every slab's edges plus the welded seam's.
+        decimate(targetFaces);
+        // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
+        // Then, only if still above target, allow larger normal turns step by step.
+        for (double turn : {0.17, 0.0, -0.3, -0.6}) {
+            mDec.setMaxNormalTurn(turn);
+            while (mDec.faceCount() > targetFaces) {
+                mDec.requeueAll();
+                if (mDec.decimateTo(targetFaces) == 0) break;
+            }
+        }
+        mDec.setMaxNormalTurn(0.17);
+        // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
+        if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
+        // Still above target (more than 1%): the surface is mostly small closed components that no
+        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds.
+        if (double(mDec.faceCount()) > 1.01 * double(targetFaces)) mComponentsDropped = mDec.dropSmallComponents(targetFaces);
+    }
+
+    // End of a slab: its last batch is decimated like the others (in parallel with the other slabs),
+    // so the serial final pass is left with the seams.
+    void finishSlab()
+    {
+        if (mSinceLast > 0 && !mInitial) decimate(batchTarget(double(mFacesGenerated)));
+        mSinceLast = 0;
+    }
+
+    // The slab above the ones merged here so far is done: its mesh joins this one, and the seam between
+    // them (edges on the plane z = seamZ, welded by key) becomes final and is decimated like a batch
+    // while the next slabs run, instead of waiting for the serial final pass.
+    void absorbSlab(Integrator& above, int32_t seamZ)
+    {
+        mDec.absorb(above.mDec);
+        mDec.finalizeOpen([seamZ](EdgeKey k) {
+            const EdgeCoord e = decodeEdgeKey(k);
+            return e.z == seamZ && e.axis != 2;
+        });
+        mAbsorbedFaces += above.mFacesGenerated + above.mAbsorbedFaces;
+        if (!mInitial) decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+    }
+
+    uint64_t facesGenerated() const { return mFacesGenerated; }
+    uint64_t componentsDropped() const { return mComponentsDropped; }
+    Decimator& decimator() { return mDec; }
+    const SlabStats& stats() const { return mStats; }
+
+private:
+    // F_t = (F - F_u) * rate + F_u: only the contractible part of the mesh is held to the rate.
+    uint64_t phaseTarget(double faces, double rate) const
+    {
+        const double fu = double(mDec.uncontractibleFaces());
+        return uint64_t(std::max(0.0, faces - fu) * rate + fu);
+    }
+
+    // Where a pass before the final one stops: F_t plus the deferral room.
+    uint64_t batchTarget(double faces) const { return phaseTarget(faces, mRatio) + mDefer; }
+
+    void decimate(uint64_t target)
+    {
+        DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target, mSlab};
+        mStats.maxUncontractibleFaces = std::max<uint64_t>(mStats.maxUncontractibleFaces, rec.uncontractible);
+        mDec.decimateTo(target);
+        rec.facesAfter = mDec.faceCount();
+        mStats.trace.push_back(rec);
+        ++mStats.decimations;
+    }
+
+    const Options& mOpt;
+    double mRatio;
+    uint64_t mBatch, mDefer;
+    uint32_t mSlab;
+    Decimator mDec;
+    SlabStats mStats;
+    bool mInitial = false;
+    uint64_t mFacesGenerated = 0, mSinceLast = 0, mComponentsDropped = 0;
+    uint64_t mAbsorbedFaces = 0;  // faces generated by slabs merged into this one (absorbSlab)
+};
+
+} // namespace vdb_isosimp

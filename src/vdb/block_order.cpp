@@ -1,0 +1,129 @@
+#include "vdb/block_order.h"
+
+#include "core/edge_key.h"
+#include "vdb_isosimp/errors.h"
+
+#include <openvdb/openvdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace vdb_isosimp {
+
+void sortBlocks(std::vector<BlockOrigin>& blocks)
+{
+    std::sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) {
+        if (a[2] != b[2]) return a[2] < b[2];
+        if (a[1] != b[1]) return a[1] < b[1];
+        return a[0] < b[0];
+    });
+    blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+    // Collection pushes a block once per leaf or tile face that needs it: the duplicates' room would
+    // otherwise stay reserved all run long.
+    blocks.shrink_to_fit();
+}
+
+namespace {
+
+void checkRange(const openvdb::CoordBBox& box, const char* what)
+{
+    // Blocks reach 8 voxels below a region and samples 1 voxel above it.
+    for (int a = 0; a < 3; ++a)
+        if (box.min()[a] - 8 < kEdgeKeyCoordMin || box.max()[a] + 1 > kEdgeKeyCoordMax) {
+            std::ostringstream s;
+            s << "the grid's " << what << " " << box << " lies outside the supported index range ["
+              << kEdgeKeyCoordMin + 8 << ", " << kEdgeKeyCoordMax - 1 << "]";
+            throw InputError(s.str());
+        }
+}
+
+// Calls fn(axis, tileMin, tileExtents, side) for every face of a tile where the constant region
+// across lies on the other side of the iso-value: the cells along it form a one-block shell.
+template <typename TreeT, typename Fn>
+void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn)
+{
+    typename TreeT::ValueAllCIter it = tree.cbeginValueAll();
+    it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1);
+    for (; it; ++it) {
+        const double v = double(*it);
+        openvdb::CoordBBox box;
+        it.getBoundingBox(box);
+        if (!std::isfinite(v)) {
+            std::ostringstream s;
+            s << "tile " << box << " holds a non-finite value (" << v << ")";
+            throw InputError(s.str());
+        }
+        const bool in = c.inside(v);
+        const int depth = int(it.getDepth());
+        const openvdb::Coord lo = box.min(), size = box.extents();
+        for (int axis = 0; axis < 3; ++axis) {
+            for (int side = 0; side < 2; ++side) {
+                openvdb::Coord across = lo;
+                across[axis] = side ? lo[axis] + size[axis] : lo[axis] - 1;
+                const int acrossDepth = tree.getValueDepth(across);
+                if (acrossDepth > depth) continue;            // finer structure: handled from there
+                if (acrossDepth == depth && side == 0) continue;  // a tile of this size across: its +side reports it
+                if (c.inside(double(tree.getValue(across))) == in) continue;
+                checkRange(box, "tile");
+                fn(axis, lo, size, side);
+            }
+        }
+    }
+}
+
+} // namespace
+
+template <typename TreeT>
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
+{
+    // Leaves: the leaf's own block and the 7 blocks whose upper corners sample it. Most of those 7 are
+    // leaves themselves; only the others are added, so the list is never 8x the leaf count: it is
+    // built while the whole topology is in memory too.
+    std::vector<BlockOrigin> blocks;
+    blocks.reserve(tree.leafCount());
+    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
+        const openvdb::Coord o = leaf->origin();
+        checkRange(leaf->getNodeBoundingBox(), "leaf");
+        blocks.push_back({o.x(), o.y(), o.z()});
+    }
+    const size_t leaves = blocks.size();
+    for (size_t i = 0; i < leaves; ++i) {
+        const BlockOrigin o = blocks[i];
+        for (int d = 1; d < 8; ++d) {
+            const openvdb::Coord low(o[0] - 8 * (d & 1), o[1] - 8 * ((d >> 1) & 1), o[2] - 8 * ((d >> 2) & 1));
+            if (!tree.probeConstLeaf(low)) blocks.push_back({low.x(), low.y(), low.z()});
+        }
+    }
+    // Tiles: faces where the constant region across is on the other side of the iso-value.
+    forEachTileShell(tree, c, [&](int axis, const openvdb::Coord& lo, const openvdb::Coord& size, int side) {
+        const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+        BlockOrigin b;
+        b[axis] = side ? lo[axis] + size[axis] - 8 : lo[axis] - 8;
+        for (int32_t i = lo[u] - 8; i <= lo[u] + size[u] - 8; i += 8)
+            for (int32_t j = lo[w] - 8; j <= lo[w] + size[w] - 8; j += 8) {
+                b[u] = i;
+                b[w] = j;
+                blocks.push_back(b);
+            }
+    });
+    sortBlocks(blocks);
+    return blocks;
+}
+
+template <typename TreeT>
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c)
+{
+    uint64_t n = 0;
+    forEachTileShell(tree, c, [&](int axis, const openvdb::Coord&, const openvdb::Coord& size, int) {
+        n += uint64_t(size[(axis + 1) % 3] / 8 + 1) * uint64_t(size[(axis + 2) % 3] / 8 + 1);
+    });
+    return n;
+}
+
+template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
+template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
+template uint64_t countTileShellBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
+template uint64_t countTileShellBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
+
+} // namespace vdb_isosimp

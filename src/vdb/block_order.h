@@ -1,0 +1,37 @@
+// Block order: which 8^3 blocks of cells to extract, and in what order.
+//
+// Every cell whose 8 corner values straddle the iso-value must be extracted exactly once. A straddling
+// cell either touches a leaf voxel, so it lies in that leaf's block or in one of the 7 blocks below /
+// behind / left of it (their +x/+y/+z corners sample the leaf), or all its corners hold constant tile or
+// background values. In that case two corners joined by a cell edge differ in sign and lie in different
+// constant regions, so the edge crosses a face of a tile: the cell lies in the one-block shell along
+// that face, and the region across the face is a tile at least as large or background (finer structure
+// across is covered by the finer tiles' own faces and by the leaves). Blocks are returned sorted by
+// (z, y, x) of their origin, without duplicates: the order modifiability.h relies on.
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/marching_cubes.h"
+
+namespace vdb_isosimp {
+
+using BlockOrigin = std::array<int32_t, 3>;
+
+// Sorts by (z, y, x) and removes duplicates.
+void sortBlocks(std::vector<BlockOrigin>& blocks);
+
+// Collects the blocks of an OpenVDB tree (float or double). @throw InputError for non-finite tiles or
+// coordinates outside the range vertex keys can name.
+template <typename TreeT>
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c);
+
+// How many blocks the tiles' faces add to collectBlocks (before duplicates go), without collecting
+// them: a few tiles can describe a surface of millions of blocks, which the memory estimate must see
+// before they are listed. @throw InputError as collectBlocks does.
+template <typename TreeT>
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c);
+
+} // namespace vdb_isosimp

@@ -1,0 +1,74 @@
+// Input checks done before any voxel is read, so a hostile or damaged file fails in milliseconds with
+// one clear line instead of hanging, crashing or running for hours first:
+//  - the file's own structure (header, grid descriptors and the byte ranges they claim), which
+//    OpenVDB trusts blindly: a truncated file otherwise sends its reader into a loop over garbage;
+//  - the grid's index bounding box, from the file's metadata, against the range vertex keys can name;
+//  - the transform: linear, finite, invertible.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <openvdb/openvdb.h>
+
+
+namespace vdb_isosimp {
+
+// One grid as the file's descriptor states it.
+struct VdbGridEntry {
+    std::string uniqueName;  // as stored: the name plus a suffix when names repeat
+    std::string plain;       // without the suffix
+    std::string name;        // plain, printable
+    std::string type;        // tree type, "_HalfFloat" appended when stored as half floats
+    std::string parent;      // instance parent (unique name); empty for a grid with its own tree
+    uint64_t gridPos = 0, blockPos = 0, endPos = 0;
+    bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
+};
+
+// Where a file's grids lie, as checkVdbFileStructure found them.
+struct VdbFileEntries {
+    uint32_t version = 0;
+    bool checkable = false;  // false only for files that cannot be walked without being consumed (pipes)
+    std::vector<VdbGridEntry> grids;
+};
+
+// Walks the header, the metadata and the grid descriptors of a .vdb file and checks that every
+// grid's data lies inside the file, and every grid's metadata and transform (which OpenVDB reads when
+// it lists the grids) inside its grid. In a file written without grid offsets (a stream), which
+// OpenVDB reads whole when it opens it, every grid's tree is walked too (as checkVdbGridData does);
+// such a file with a grid of another type than float or double is refused, as are file formats older
+// than 222. Returns where the grids lie, for checkVdbGridData (a stream's trees are walked once here).
+// @throw InputError naming the file ("truncated or damaged OpenVDB file ...", or what is refused).
+VdbFileEntries checkVdbFileStructure(const std::string& path);
+
+// What checkVdbGridData learned about a grid's tree.
+struct VdbGridLayout {
+    bool checked = false;                              // false: a layout left to OpenVDB
+    std::vector<std::array<int32_t, 3>> leafOrigins;   // in file order
+    std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
+};
+
+// Walks one float or double grid's stored tree before OpenVDB reads it: the topology node by node
+// (counts against the bytes that hold them, node origins, tile-value chunks), then every leaf's
+// record (value mask, compression code, chunk size, the blosc header's sizes and block offsets or
+// the zlib header) against the leaf's expected size, and the per-leaf sizes of the delayed-load
+// metadata against the records. OpenVDB trusts all of these: a wrong one makes it allocate what the
+// file says, read past a buffer in c-blosc, or loop over garbage. What only decompression can find
+// (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
+// @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
+// "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName);
+
+// Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
+// one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).
+// @throw InputError (without the file name) describing the box and the supported range.
+void checkIndexBox(const int32_t min[3], const int32_t max[3], const char* what);
+
+// The bounding box the file's metadata states for a grid (file_bbox_min/max), when present.
+void checkGridMetadata(const openvdb::GridBase& meta);
+
+// Linear, all coefficients finite, invertible. @throw InputError (without the file name).
+void checkTransform(const openvdb::math::Transform& xform);
+
+} // namespace vdb_isosimp

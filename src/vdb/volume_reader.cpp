@@ -1,0 +1,536 @@
+#include "vdb/volume_reader.h"
+
+#include "vdb/block_order.h"
+#include "vdb/input_checks.h"
+#include "vdb_isosimp/errors.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <sys/mman.h>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <tuple>
+
+#include <malloc.h>
+
+namespace vdb_isosimp {
+
+namespace {
+
+// OpenVDB's messages may span lines and start with their exception's class ("RuntimeError: "); the
+// programs print one line per error, in words.
+std::string oneLine(std::string s)
+{
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    const size_t colon = s.find(": ");
+    if (colon != std::string::npos && colon > 5 && s.compare(colon - 5, 5, "Error") == 0 &&
+        s.find(' ') > colon)
+        s.erase(0, colon + 2);
+    return s;
+}
+
+std::string coordText(const openvdb::Coord& c)
+{
+    std::ostringstream s;
+    s << "[" << c.x() << ", " << c.y() << ", " << c.z() << "]";
+    return s.str();
+}
+
+// OpenVDB's LeafBuffer::doLoad() puts a fresh voxel array into the union that held the buffer's file
+// position, then decompresses; when decompression throws, the out-of-core flag stays set over that
+// array. From then on any access loads again and the destructor detaches from the "file", both
+// reading the voxel array as the FileInfo it replaced: Tree::clear() crashes freeing garbage shared
+// pointers. No public call clears the flag alone, so the broken buffer is swapped out of its leaf
+// for an empty in-core one and kept, never destroyed, for the rest of the process (2 KB per damaged
+// leaf met; a run stops at the first). Reachable from a static, so leak checkers stay quiet.
+template <typename LeafT>
+void parkBrokenBuffer(LeafT& leaf)
+{
+    static std::mutex mutex;
+    static auto* parked = new std::vector<typename LeafT::Buffer*>;
+    auto* empty = new typename LeafT::Buffer(openvdb::PartialCreate(), typename LeafT::ValueType(0));
+    empty->swap(leaf.buffer());
+    std::lock_guard<std::mutex> lock(mutex);
+    parked->push_back(empty);
+}
+
+// Reads a leaf's voxels from the file (delayed loading) once; on failure the leaf is left safe to
+// destroy (parkBrokenBuffer) and the error names the grid and the leaf. Callers serialise the first
+// load of each leaf: a second thread waiting on OpenVDB's own lock would load the broken buffer.
+template <typename LeafT>
+void loadLeaf(LeafT& leaf, const std::string& gridName)
+{
+    const char* what = nullptr;
+    try {
+        leaf.buffer().data();
+        return;
+    } catch (const std::bad_alloc&) {
+        what = "out of memory reading its voxels";
+    } catch (const std::exception&) {
+        what = "compressed data is damaged";
+    }
+    parkBrokenBuffer(leaf);
+    throw InputError("grid '" + gridName + "', leaf " + coordText(leaf.origin()) + ": " + what);
+}
+
+template <typename GridT>
+class VolumeT final : public Volume {
+public:
+    using ValueT = typename GridT::ValueType;
+
+    VolumeT(typename GridT::Ptr grid, VolumeInfo info, bool fromFile) : mGrid(std::move(grid))
+    {
+        mInfo = std::move(info);
+        mFromFile = fromFile;
+        if (fromFile) {
+            keepMappingAlive();
+            trimInputMapping();  // the topology was read through the mapping
+            layOutInSweepOrder();
+        }
+    }
+
+    std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const override
+    {
+        return collectBlocks(mGrid->tree(), c);
+    }
+
+    uint64_t tileShellBlocks(const Classifier& c) const override { return countTileShellBlocks(mGrid->tree(), c); }
+
+    void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
+    {
+        loadLeaves(origin);
+        sampleUnchecked(origin, out);
+    }
+
+    // The first read of a leaf's voxels happens here, one thread per leaf (a lock stripe by origin),
+    // for the up to 8 leaves the block's 9^3 samples touch: afterwards they are in memory and the
+    // accessor's reads load nothing. A leaf that failed before is reported again.
+    // The leaves above a slab's top blocks belong to the next slab, which frees them as it goes
+    // (releaseSeamLeaf, under mSeamMutex): those are looked up and loaded under the same lock.
+    void loadLeaves(const std::array<int32_t, 3>& origin) const
+    {
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + 8) != mSeams.end();
+        for (int d = 0; d < 8; ++d) {
+            const openvdb::Coord c(origin[0] + 8 * (d & 1), origin[1] + 8 * ((d >> 1) & 1), origin[2] + 8 * ((d >> 2) & 1));
+            std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
+            if (seamTop && (d >> 2)) seamLock.lock();
+            LeafT* leaf = mGrid->tree().probeLeaf(c);
+            if (!leaf || !leaf->buffer().isOutOfCore()) {
+                if (mDamaged.load(std::memory_order_acquire)) throwDamaged();
+                continue;
+            }
+            const openvdb::Coord o = leaf->origin();
+            const uint32_t stripe = uint32_t(o.x()) * 73856093u ^ uint32_t(o.y()) * 19349663u ^ uint32_t(o.z()) * 83492791u;
+            std::lock_guard<std::mutex> lock(mLoadMutex[stripe % kLoadStripes]);
+            if (!leaf->buffer().isOutOfCore()) continue;
+            try {
+                loadLeaf(*leaf, mInfo.gridName);
+            } catch (const InputError& e) {
+                std::lock_guard<std::mutex> g(mDamageMutex);
+                if (!mDamaged.load()) mDamage = e.what();
+                mDamaged.store(true, std::memory_order_release);
+                throw;
+            }
+        }
+    }
+
+    [[noreturn]] void throwDamaged() const
+    {
+        std::lock_guard<std::mutex> g(mDamageMutex);
+        throw InputError(mDamage);
+    }
+
+    void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
+    {
+        typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        out.origin = origin;
+        constexpr int N = BlockSamples::N;
+        // The top plane of a slab's last block layer lies in the next slab's first leaf layer, whose
+        // leaves may be gone already with only their bottom plane kept (releaseSeamLeaf).
+        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + N - 1) != mSeams.end();
+        std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
+        openvdb::Coord ijk;
+        for (int z = 0; z < N; ++z) {
+            ijk.z() = origin[2] + z;
+            const bool fromSeam = seamTop && z == N - 1;
+            if (fromSeam) seamLock.lock();  // no seam leaf is freed while its plane is read here
+            for (int y = 0; y < N; ++y) {
+                ijk.y() = origin[1] + y;
+                for (int x = 0; x < N; ++x) {
+                    ijk.x() = origin[0] + x;
+                    const double v = double(fromSeam ? seamValue(acc, ijk) : acc.getValue(ijk));
+                    if (!std::isfinite(v)) {
+                        std::ostringstream s;
+                        s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << v
+                          << " (NaN/Inf values are not allowed)";
+                        throw InputError(s.str());
+                    }
+                    out.at(x, y, z) = v;
+                }
+            }
+        }
+    }
+
+    // One copy of a leaf still on disk, never read, keeps the file mapping alive (it is shared by the
+    // buffers still on disk and is unmapped with the last of them) for as long as this volume lives,
+    // so the ranges trimInputMapping() looks up once stay the file's: after an unmap, that address
+    // range can come back as heap memory. With no leaf on disk (delayed loading off, or tiles only)
+    // nothing holds the mapping, and trimming stays off.
+    void keepMappingAlive()
+    {
+        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it)
+            if (it->buffer().isOutOfCore()) {
+                mKeepsMapping = std::make_unique<typename GridT::TreeType::LeafNodeType>(*it.getLeaf());
+                mHoldsMapping = true;
+                return;
+            }
+    }
+
+    // Leaf nodes come off the file in tree order (z fastest inside each internal node) but are deleted
+    // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
+    // and the topology's resident memory would stay whole although its nodes were gone. Copies made
+    // in sweep order (their voxels stay unread: delayed loading copies the file position) free their
+    // pages as the sweep passes. Costs a second topology for a moment.
+    void layOutInSweepOrder()
+    {
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        std::vector<const LeafT*> leaves;
+        leaves.reserve(mGrid->tree().leafCount());
+        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(it.getLeaf());
+        std::sort(leaves.begin(), leaves.end(), [](const LeafT* a, const LeafT* b) {
+            const openvdb::Coord &p = a->origin(), &q = b->origin();
+            return std::make_tuple(p.z(), p.y(), p.x()) < std::make_tuple(q.z(), q.y(), q.x());
+        });
+        std::vector<std::unique_ptr<LeafT>> copies;
+        copies.reserve(leaves.size());
+        for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
+        for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
+        ::malloc_trim(0);
+    }
+
+    // A voxel of a seam plane: from the kept bottom plane when its leaf is gone, else from the tree.
+    // Called with mSeamMutex held.
+    ValueT seamValue(typename GridT::ConstAccessor& acc, const openvdb::Coord& ijk) const
+    {
+        const openvdb::Coord leaf = ijk & ~openvdb::Int32(7);
+        const auto it = mSeamPlanes.find(std::make_tuple(leaf.x(), leaf.y(), leaf.z()));
+        if (it == mSeamPlanes.end()) return acc.getValue(ijk);
+        return it->second[size_t((ijk.y() - leaf.y()) * 8 + (ijk.x() - leaf.x()))];
+    }
+
+    void setSeams(const std::vector<int32_t>& z) override { mSeams = z; }
+
+    void releaseSeamLeaf(const std::array<int32_t, 3>& o) override
+    {
+        if (!mFromFile) return;
+        std::lock_guard<std::mutex> lock(mSeamMutex);
+        if (const auto* leaf = mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]))) {
+            std::array<ValueT, 64>& plane = mSeamPlanes[std::make_tuple(o[0], o[1], o[2])];
+            for (int y = 0; y < 8; ++y)
+                for (int x = 0; x < 8; ++x) plane[size_t(y * 8 + x)] = leaf->getValue(openvdb::Coord(o[0] + x, o[1] + y, o[2]));
+        }
+        releaseLeaf(o);
+    }
+
+    void dropSeamPlanes(int32_t z) override
+    {
+        std::lock_guard<std::mutex> lock(mSeamMutex);
+        for (auto it = mSeamPlanes.begin(); it != mSeamPlanes.end();)
+            it = std::get<2>(it->first) == z ? mSeamPlanes.erase(it) : std::next(it);
+    }
+
+    void releaseLeaf(const std::array<int32_t, 3>& o) override
+    {
+        if (!mFromFile) return;  // a caller's grid stays whole
+        // The whole leaf goes, not just its voxels: the node and its mask are ~100 bytes a leaf, which
+        // would otherwise stay to the end of the run. Nothing samples
+        // this leaf again (blocks only sample leaves at or above their origin, and this block was the
+        // last), so the parent's entry becomes an inactive background tile. Other threads may be
+        // reading other entries of the same parent; only the writers are serialised.
+        using ParentT = typename GridT::TreeType::RootNodeType::ChildNodeType::ChildNodeType;
+        const openvdb::Coord ijk(o[0], o[1], o[2]);
+        std::lock_guard<std::mutex> lock(mReleaseMutex);
+        if (ParentT* parent = mGrid->tree().template probeNode<ParentT>(ijk)) {
+            const openvdb::Index n = ParentT::coordToOffset(ijk);
+            if (parent->isChildMaskOn(n)) parent->addTile(n, mGrid->background(), false);
+        }
+    }
+
+    std::array<double, 2> valueRange() const override
+    {
+        // Scanning the grid itself would load every voxel buffer at once and keep it: read a second,
+        // delayed-loading copy instead and free each leaf right after reading it, so the scan costs a
+        // second decompression pass but only one leaf of memory at a time.
+        typename GridT::Ptr copy = mGrid;
+        if (mFromFile) try {
+            openvdb::io::File f(mInfo.file);
+            f.setCopyMaxBytes(0);
+            f.open(/*delayLoad=*/true);
+            copy = openvdb::gridPtrCast<GridT>(f.readGrid(mInfo.gridName));
+        } catch (const std::exception&) {
+            copy = mGrid;  // not from a file (or unreadable now): scan in place
+        }
+        if (!copy) copy = mGrid;
+        double lo = double(copy->background()), hi = lo;
+        typename GridT::TreeType::ValueAllCIter tiles = copy->tree().cbeginValueAll();
+        tiles.setMaxDepth(GridT::TreeType::ValueAllCIter::LEAF_DEPTH - 1);
+        for (; tiles; ++tiles) {
+            lo = std::min(lo, double(*tiles));
+            hi = std::max(hi, double(*tiles));
+        }
+        using LeafT = typename GridT::TreeType::LeafNodeType;
+        std::vector<LeafT*> leaves;
+        if (copy != mGrid) copy->tree().getNodes(leaves);
+        else for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(const_cast<LeafT*>(it.getLeaf()));
+        const bool release = copy != mGrid;
+        using Range = std::array<double, 2>;
+        const Range r = tbb::parallel_reduce(
+            tbb::blocked_range<size_t>(0, leaves.size(), 64), Range{lo, hi},
+            [&](const tbb::blocked_range<size_t>& br, Range acc) {
+                for (size_t i = br.begin(); i != br.end(); ++i) {
+                    if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName);
+                    const auto* v = leaves[i]->buffer().data();
+                    const auto mm = std::minmax_element(v, v + LeafT::SIZE);
+                    acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
+                    if (release) {
+                        typename LeafT::Buffer empty(openvdb::PartialCreate(), copy->background());
+                        leaves[i]->swap(empty);
+                    }
+                }
+                return acc;
+            },
+            [](const Range& a, const Range& b) { return Range{std::min(a[0], b[0]), std::max(a[1], b[1])}; });
+        return r;
+    }
+
+private:
+    typename GridT::Ptr mGrid;
+    std::mutex mReleaseMutex;
+    // First loads of leaves (loadLeaves): a lock per stripe of leaf origins; the first damaged leaf's
+    // message, repeated to every later sample so no block reads the emptied leaf as data.
+    static constexpr size_t kLoadStripes = 64;
+    mutable std::array<std::mutex, kLoadStripes> mLoadMutex;
+    mutable std::atomic<bool> mDamaged{false};
+    mutable std::mutex mDamageMutex;
+    mutable std::string mDamage;
+    std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
+    // Seams: z of each slab's first leaf layer (set before extraction, read-only during it), and the
+    // bottom planes of released seam leaves, by leaf origin.
+    std::vector<int32_t> mSeams;
+    mutable std::mutex mSeamMutex;
+    std::map<std::tuple<int32_t, int32_t, int32_t>, std::array<ValueT, 64>> mSeamPlanes;
+};
+
+Affine affineOf(const openvdb::math::Transform& xform)
+{
+    // OpenVDB multiplies row vectors: world = index * M, translation in row 3.
+    const openvdb::Mat4d m = xform.baseMap()->getAffineMap()->getMat4();
+    Affine a;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) a.m[r * 4 + c] = m(c, r);
+        a.m[r * 4 + 3] = m(3, r);
+    }
+    return a;
+}
+
+// Topology figures for the memory estimate; walks nodes, never a voxel buffer.
+template <typename GridT>
+void topologyInfo(const GridT& g, VolumeInfo& info)
+{
+    const auto& tree = g.tree();
+    info.leafCount = tree.leafCount();
+    info.activeVoxels = g.activeVoxelCount();
+    info.topologyBytes = tree.memUsage();
+    info.valueBytes = sizeof(typename GridT::ValueType);
+    std::vector<int32_t> z;
+    z.reserve(size_t(info.leafCount));
+    for (auto it = tree.cbeginLeaf(); it; ++it) z.push_back(it->origin().z());
+    std::sort(z.begin(), z.end());
+    for (size_t i = 0; i < z.size();) {
+        size_t j = i;
+        while (j < z.size() && z[j] == z[i]) ++j;
+        info.maxLeavesPerLayer = std::max<uint64_t>(info.maxLeavesPerLayer, j - i);
+        i = j;
+    }
+}
+
+bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
+
+// What both entry points share once the grid is in hand: the info the pipeline needs, and the
+// checks that need the topology (never a voxel buffer).
+std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile)
+{
+    VolumeInfo info;
+    info.file = label;
+    info.gridName = grid->getName();
+    info.valueType = grid->valueType();
+    info.levelSet = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
+    info.indexToWorld = affineOf(grid->transform());
+    if (std::abs(info.indexToWorld.determinant()) < 1e-300)
+        throw InputError(label + ": grid '" + info.gridName + "' has a singular transform");
+
+    std::unique_ptr<Volume> vol;
+    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
+        info.background = f->background();
+        topologyInfo(*f, info);
+        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, fromFile);
+    } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
+        info.background = d->background();
+        topologyInfo(*d, info);
+        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, fromFile);
+    } else {
+        throw InputError(label + ": grid '" + info.gridName + "' is not a float or double grid");
+    }
+    if (!std::isfinite(info.background))
+        throw InputError(label + ": grid '" + info.gridName + "' has a non-finite background value");
+    if (info.activeVoxels == 0 && info.leafCount == 0)
+        throw InputError(label + ": grid '" + info.gridName + "' is empty (no active voxels)");
+    // The topology's own box (leaves and active tiles), before any voxel is read.
+    openvdb::CoordBBox box;
+    if (grid->baseTree().evalLeafBoundingBox(box)) {
+        const int32_t mn[3] = {box.min().x(), box.min().y(), box.min().z()};
+        const int32_t mx[3] = {box.max().x(), box.max().y(), box.max().z()};
+        try {
+            checkIndexBox(mn, mx, "the grid's leaves and active tiles span the index box");
+        } catch (const InputError& e) {
+            throw InputError(label + ": grid '" + info.gridName + "': " + e.what());
+        }
+    }
+    return vol;
+}
+
+
+} // namespace
+
+void Volume::trimInputMapping() const
+{
+    if (!mHoldsMapping) return;
+    // The mapping exists from the open on and stays put while this volume lives (the volume keeps it
+    // alive, see layOutInSweepOrder): /proc/self/maps is read once.
+    std::call_once(mMappedOnce, [this] {
+        char resolved[PATH_MAX];
+        if (!::realpath(mInfo.file.c_str(), resolved)) return;
+        const std::string target = resolved;
+        std::ifstream maps("/proc/self/maps");
+        std::string line;
+        while (std::getline(maps, line)) {
+            // "start-end perms offset dev inode   path"
+            if (line.size() < target.size() || line.compare(line.size() - target.size(), target.size(), target) != 0) continue;
+            unsigned long start = 0, end = 0;
+            if (std::sscanf(line.c_str(), "%lx-%lx", &start, &end) == 2 && end > start) mMapped.push_back({start, end - start});
+        }
+    });
+    for (const auto& [start, length] : mMapped) ::madvise(reinterpret_cast<void*>(start), length, MADV_DONTNEED);
+}
+
+std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName)
+{
+    static std::once_flag init;
+    std::call_once(init, [] { openvdb::initialize(); });
+
+    if (!std::ifstream(path, std::ios::binary).good())
+        throw InputError(path + ": cannot open file for reading (missing or unreadable)");
+    // OpenVDB trusts the offsets a file states; a truncated file would send it into a loop.
+    const VdbFileEntries entries = checkVdbFileStructure(path);
+
+    openvdb::io::File file(path);
+    openvdb::GridPtrVecPtr metas;
+    try {
+        file.setCopyMaxBytes(0);  // read the file in place rather than through a private copy
+        file.open(/*delayLoad=*/true);
+        metas = file.readAllGridMetadata();
+    } catch (const std::bad_alloc&) {
+        throw InputError(path + ": not a readable OpenVDB file (out of memory reading its metadata)");
+    } catch (const std::exception& e) {
+        throw InputError(path + ": not a readable OpenVDB file (" + oneLine(e.what()) + ")");
+    }
+    if (!metas || metas->empty()) throw InputError(path + ": the file holds no grids");
+
+    openvdb::GridBase::ConstPtr meta;
+    if (gridName.empty()) {
+        for (const auto& g : *metas)
+            if (isScalar(*g)) { meta = g; break; }
+        if (!meta) {
+            std::string names;
+            for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName() + " (" + g->valueType() + ")";
+            throw InputError(path + ": no float or double grid in the file (grids: " + names + ")");
+        }
+    } else {
+        for (const auto& g : *metas)
+            if (g->getName() == gridName) { meta = g; break; }
+        if (!meta) {
+            std::string names;
+            for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName();
+            throw InputError(path + ": no grid named '" + gridName + "' (grids: " + names + ")");
+        }
+        if (!isScalar(*meta))
+            throw InputError(path + ": grid '" + gridName + "' has value type " + meta->valueType() +
+                             "; only float and double grids can be meshed");
+    }
+
+    // Before the topology is read: the bounding box the file states, and the transform.
+    try {
+        checkGridMetadata(*meta);
+        checkTransform(meta->transform());
+    } catch (const InputError& e) {
+        throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
+    }
+
+    // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
+
+    openvdb::GridBase::Ptr grid;
+    try {
+        grid = file.readGrid(meta->getName());
+    } catch (const std::bad_alloc&) {
+        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (out of memory reading its topology)");
+    } catch (const std::exception& e) {
+        throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + oneLine(e.what()) + ")");
+    }
+    if (!grid) throw InputError(path + ": cannot read grid '" + meta->getName() + "'");
+    if (layout.checked && grid->baseTree().leafCount() != layout.leafOrigins.size())
+        throw InputError(path + ": truncated or damaged OpenVDB file (grid '" + meta->getName() + "': " +
+                         std::to_string(grid->baseTree().leafCount()) + " leaves read, " +
+                         std::to_string(layout.leafOrigins.size()) + " stored)");
+    try {
+        checkTransform(grid->transform());
+    } catch (const InputError& e) {
+        throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
+    }
+
+    return wrapGrid(grid, path, /*fromFile=*/true);
+}
+
+std::unique_ptr<Volume> Volume::fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label)
+{
+    static std::once_flag init;
+    std::call_once(init, [] { openvdb::initialize(); });
+    if (!grid) throw InputError(label + ": no grid");
+    if (!isScalar(*grid))
+        throw InputError(label + ": grid '" + grid->getName() + "' has value type " + grid->valueType() +
+                         "; only float and double grids can be meshed");
+    try {
+        checkTransform(grid->transform());
+    } catch (const InputError& e) {
+        throw InputError(label + ": grid '" + grid->getName() + "' " + e.what());
+    }
+    // Never written to: a caller's grid is only read (releaseLeaf is a no-op for it).
+    return wrapGrid(openvdb::ConstPtrCast<openvdb::GridBase>(grid), label, /*fromFile=*/false);
+}
+
+} // namespace vdb_isosimp

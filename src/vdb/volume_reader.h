@@ -1,0 +1,92 @@
+// Volume reader: opens a scalar grid of an OpenVDB file with delayed loading (voxel buffers are read
+// when first sampled) and gives the rest of the pipeline what it needs, independent of float/double:
+// the block list, 9^3 block samples, the index-to-world map and the grid's sign convention.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/marching_cubes.h"
+
+#include <openvdb/openvdb.h>
+
+namespace vdb_isosimp {
+
+struct VolumeInfo {
+    std::string file;
+    std::string gridName;
+    std::string valueType;      // "float" or "double"
+    bool levelSet = false;      // grid class level set: inside is value < iso
+    Affine indexToWorld;
+    double background = 0.0;
+    uint64_t leafCount = 0;
+    uint64_t activeVoxels = 0;
+    // For the memory estimate (input_checks.h), from the topology alone.
+    uint64_t topologyBytes = 0;      // tree nodes without the voxel buffers
+    uint64_t maxLeavesPerLayer = 0;  // leaves in the fullest z-layer of leaves
+    uint64_t valueBytes = 4;         // sizeof(float) or sizeof(double)
+};
+
+class Volume {
+public:
+    // Opens `gridName` (empty: the first float/double grid) of `path`: the file's structure, the
+    // grid's type, class, transform and index bounding box are checked before any voxel is read
+    // (input_checks.h); OpenVDB's own exceptions become InputError too.
+    // @throw InputError naming the file and the problem.
+    static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName);
+    // A read-only view of a grid already in memory (the library's grid-in entry point): its voxel
+    // buffers are never released. `label` names it in messages. @throw InputError as open() does.
+    static std::unique_ptr<Volume> fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label);
+    virtual ~Volume() = default;
+
+    const VolumeInfo& info() const { return mInfo; }
+
+    // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
+    virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
+    // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
+    virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
+    // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
+    // when the voxels cannot be read from the file (delayed loading).
+    virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
+    // Frees the voxel buffer of the leaf whose origin is `blockOrigin`, if any. Leaf L is last sampled
+    // by block L itself (blocks after it in z/y/x order only sample higher voxels), so once block L is
+    // integrated its voxels are dead: live voxel data stays about one layer of blocks. Call from the
+    // in-order stage only; no block after L reads L, so concurrent extraction is unaffected.
+    virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    // Seams between slabs processed in parallel (pipeline.cpp): a slab's first leaf layer (at one of
+    // the z given to setSeams) is also sampled by the slab below, but only its bottom voxel plane.
+    // releaseSeamLeaf keeps that plane (64 values) and frees the leaf as releaseLeaf does, so no slab
+    // holds a whole layer of voxels for its neighbour; samples of that plane come from the kept copy.
+    // dropSeamPlanes(z) frees the planes at z once the slab below is done. Same calling rules as
+    // releaseLeaf; setSeams before any sampling.
+    virtual void setSeams(const std::vector<int32_t>& z) = 0;
+    virtual void releaseSeamLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    virtual void dropSeamPlanes(int32_t z) = 0;
+    // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
+    // a few MB (more often, the other threads' TLB flushes cost time).
+    static constexpr size_t kTrimEveryBlocks = 16;
+    // Delayed loading maps the input file; the pages read so far stay counted in the process's
+    // resident memory although the voxels they held were decoded long ago. Drops those pages from
+    // this process (they stay in the page cache and fault back in if read again), so resident memory
+    // follows the output rather than the input file. Safe while other threads read the file. Call it
+    // often (every few blocks): each leaf read faults in the pages around it too (fault-around,
+    // 64 KB), and leaves lie in the file in tree order, not in sweep order.
+    void trimInputMapping() const;
+    // Smallest and largest value stored in the grid (voxels, tiles and background).
+    virtual std::array<double, 2> valueRange() const = 0;
+
+protected:
+    VolumeInfo mInfo;
+    bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
+    bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
+
+private:
+    mutable std::once_flag mMappedOnce;
+    mutable std::vector<std::pair<unsigned long, size_t>> mMapped;  // the input file's mapped ranges
+};
+
+} // namespace vdb_isosimp

@@ -1,0 +1,99 @@
+// The block list (vdb/block_order): sorted by z, y, x without duplicates, covering every straddling
+// cell of random sparse grids with leaves and tiles of every size, and the tile-shell count the memory
+// estimate uses.
+#include "test_grids.h"
+#include "vdb/block_order.h"
+
+#include <openvdb/tools/Dense.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+using namespace vdb_isosimp;
+
+TEST(BlockOrder, SortsByZThenYThenXWithoutDuplicates)
+{
+    std::mt19937 rng(3);
+    std::vector<BlockOrigin> blocks;
+    for (int i = 0; i < 5000; ++i)
+        blocks.push_back({8 * int32_t(rng() % 9) - 32, 8 * int32_t(rng() % 9) - 32, 8 * int32_t(rng() % 9) - 32});
+    std::set<std::array<int32_t, 3>> zyx;
+    for (const auto& b : blocks) zyx.insert({b[2], b[1], b[0]});
+    sortBlocks(blocks);
+    ASSERT_EQ(blocks.size(), zyx.size());
+    size_t i = 0;
+    for (const auto& k : zyx) {
+        EXPECT_EQ(blocks[i], (BlockOrigin{k[2], k[1], k[0]})) << i;
+        ++i;
+    }
+}
+
+// Every cell whose corners lie on both sides of the iso-value is in a listed block, found by a dense
+// scan of the grid's values (the block of a cell is its corner rounded down to a multiple of 8).
+TEST(BlockOrder, CoversEveryStraddlingCell)
+{
+    for (unsigned seed = 1; seed <= 6; ++seed) {
+        vdb_isosimp::testing::GridSpec spec;
+        spec.seed = seed;
+        spec.levelSet = seed % 2;
+        spec.bigTile = seed % 3 == 0;
+        const auto grid = vdb_isosimp::testing::randomSparseGrid(spec);
+        Classifier c;
+        c.insideBelow = spec.levelSet;
+        c.iso = spec.levelSet ? 0.0 : 0.5;
+        const std::vector<BlockOrigin> blocks = collectBlocks(grid->tree(), c);
+        const std::set<BlockOrigin> listed(blocks.begin(), blocks.end());
+        EXPECT_EQ(listed.size(), blocks.size()) << "duplicates, seed " << seed;
+
+        openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+        box.expand(9);
+        openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
+        openvdb::tools::copyToDense(*grid, dense);
+        size_t straddling = 0, missing = 0;
+        const openvdb::Coord lo = box.min(), hi = box.max();
+        for (int z = lo.z(); z < hi.z(); ++z)
+            for (int y = lo.y(); y < hi.y(); ++y)
+                for (int x = lo.x(); x < hi.x(); ++x) {
+                    bool in = false, out = false;
+                    for (int d = 0; d < 8; ++d) {
+                        const bool i = c.inside(dense.getValue(openvdb::Coord(x + (d & 1), y + ((d >> 1) & 1), z + ((d >> 2) & 1))));
+                        (i ? in : out) = true;
+                    }
+                    if (!(in && out)) continue;
+                    ++straddling;
+                    const auto down = [](int v) { return v >= 0 ? v / 8 * 8 : -((-v + 7) / 8) * 8; };
+                    if (!listed.count({down(x), down(y), down(z)})) ++missing;
+                }
+        EXPECT_GT(straddling, 0u) << "seed " << seed;
+        EXPECT_EQ(missing, 0u) << "seed " << seed << ": straddling cells outside every listed block";
+    }
+}
+
+// A tile's faces: one shell of blocks each, counted once where two tiles of one size meet.
+TEST(BlockOrder, TileShellsAreCountedBeforeTheyAreListed)
+{
+    Classifier c;
+    c.insideBelow = false;
+    c.iso = 0.5;
+    const auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->tree().addTile(2, openvdb::Coord(0), 1.0f, true);  // 128^3 beside inactive 128^3 background tiles
+    EXPECT_EQ(countTileShellBlocks(grid->tree(), c), 6u * 17 * 17);
+    const std::vector<BlockOrigin> blocks = collectBlocks(grid->tree(), c);
+    EXPECT_LE(blocks.size(), 6u * 17 * 17);
+    for (const BlockOrigin& b : blocks) {
+        bool onShell = false;
+        for (int a = 0; a < 3; ++a) onShell |= b[a] == -8 || b[a] == 120;
+        EXPECT_TRUE(onShell) << b[0] << " " << b[1] << " " << b[2];
+    }
+    // Two tiles of one size side by side: inside and outside, their shared face is counted once (6
+    // faces in all); both inside, it is no surface (10 faces).
+    for (float second : {0.0f, 1.0f}) {
+        const auto two = openvdb::FloatGrid::create(0.0f);
+        two->tree().addTile(2, openvdb::Coord(0), 1.0f, true);
+        two->tree().addTile(2, openvdb::Coord(128, 0, 0), second, true);
+        EXPECT_EQ(countTileShellBlocks(two->tree(), c), (second > 0.5f ? 10u : 6u) * 17 * 17) << second;
+    }
+}
