@@ -4,7 +4,8 @@
 #     the evaluation library (eval/) include no header of the library's internals (src/): only the
 #     public headers (include/vdb_isosimp/) and their own;
 #  2. inside the library, includes flow one way between the layers, include/ <- core <- vdb <- io <-
-#     pipeline, and no module (a .h/.cpp pair) reaches itself through its includes.
+#     pipeline, and no module (a .h/.cpp pair) reaches itself through its includes;
+#  3. the library's messages name no command-line flag (a library caller has none; the programs add them).
 # Prints each violation as FILE: what, and exits 1 if there is one.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -78,6 +79,16 @@ def visit(m, stack):
 for m in sorted(graph):
     if m not in state:
         visit(m, [])
+
+# 3. No command-line flag in a string literal of the library.
+FLAG = re.compile(r'"(?:[^"\\\n]|\\.)*?(?<![\w-])--[a-z][a-z-]*')
+for top in ["src", "include"]:
+    for p in sources(top):
+        with open(p, encoding="utf-8", errors="replace") as f:
+            for n, line in enumerate(f, 1):
+                code = line.split("//")[0]
+                if FLAG.search(code):
+                    problems.append(f"{p}:{n}: a command-line flag in a library message")
 
 for p in problems:
     print(p)
