@@ -401,16 +401,21 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         const V3& a = mGeom[fv[0]].p;
         const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
         const double lenOld = std::sqrt(dot(nOld, nOld));
+        auto edgesOld = [&] {
+            return dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
+                   dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
+                   dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
+        };
         if (!(lenNew > kMinShape * edges)) {
             // A face that was already degenerate (values exactly at the iso-value make coincident
             // vertices) may stay so: refusing would pin it forever instead of letting it be collapsed.
-            const double edgesOld = dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
-                                    dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
-                                    dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
-            if (lenOld > kMinShape * edgesOld) return false;
+            if (lenOld > kMinShape * edgesOld()) return false;
             continue;
         }
-        if (lenOld > 0 && dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew) return false;
+        // A face without area has no orientation to keep: the normal of vertices a rounding error apart
+        // points anywhere, and comparing with it would refuse, at random, the moves that open a
+        // zero-width neck (coincident vertices around a voxel at the iso-value on a small handle).
+        if (dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew && lenOld > kDegenerateShape * edgesOld()) return false;
     }
     return true;
 }
