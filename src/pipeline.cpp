@@ -182,6 +182,9 @@ static Result runPipeline(const std::function<std::unique_ptr<Volume>()>& open, 
     const uint64_t batch = std::max<uint64_t>(1000, opt.batchFaces / slabs.size());
     std::vector<std::unique_ptr<Integrator>> integs;
     for (uint32_t i = 0; i < slabs.size(); ++i) integs.push_back(std::make_unique<Integrator>(opt, ratio, batch, i));
+    // The decimator's least face weight is a fraction of a voxel face, in world units.
+    const double voxelArea = std::pow(std::abs(info.indexToWorld.determinant()), 2.0 / 3.0);
+    for (auto& integ : integs) integ->decimator().setVoxelArea(voxelArea);
     released = true;
     std::mutex progressMutex;
     size_t done = 0;

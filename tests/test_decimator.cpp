@@ -137,6 +137,61 @@ TEST(Decimator, ZeroWidthNeckOfASmallTorusOpens)
     }
 }
 
+// An octahedron subdivided `levels` times and pushed onto an ellipsoid with semi-axes `axes`: faces of
+// many sizes, every vertex final.
+BlockMesh ellipsoid(int levels, std::array<double, 3> axes, double scale)
+{
+    std::vector<std::array<double, 3>> p = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    std::vector<std::array<uint32_t, 3>> t = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    for (int l = 0; l < levels; ++l) {
+        std::vector<std::array<uint32_t, 3>> next;
+        std::vector<std::pair<std::pair<uint32_t, uint32_t>, uint32_t>> mid;
+        auto midpoint = [&](uint32_t a, uint32_t b) {
+            const auto key = std::make_pair(std::min(a, b), std::max(a, b));
+            for (const auto& [k, v] : mid)
+                if (k == key) return v;
+            std::array<double, 3> m{(p[a][0] + p[b][0]) / 2, (p[a][1] + p[b][1]) / 2, (p[a][2] + p[b][2]) / 2};
+            const double len = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+            p.push_back({m[0] / len, m[1] / len, m[2] / len});
+            mid.push_back({key, uint32_t(p.size() - 1)});
+            return uint32_t(p.size() - 1);
+        };
+        for (const auto& f : t) {
+            const uint32_t a = midpoint(f[0], f[1]), b = midpoint(f[1], f[2]), c = midpoint(f[2], f[0]);
+            next.insert(next.end(), {{f[0], a, c}, {a, f[1], b}, {c, b, f[2]}, {a, b, c}});
+        }
+        t = next;
+    }
+    BlockMesh b;
+    for (size_t k = 0; k < p.size(); ++k) {
+        b.keys.push_back(makeEdgeKey(int32_t(k), 0, 0, 0));
+        b.positions.push_back({scale * axes[0] * p[k][0], scale * axes[1] * p[k][1], scale * axes[2] * p[k][2]});
+        b.finalAfterBlock.push_back(1);
+    }
+    b.triangles = t;
+    return b;
+}
+
+TEST(Decimator, SameCollapsesInAnyUnitGivenTheVoxelArea)
+{
+    // Face weights have a floor relative to a voxel face's area: the same surface in units 8x larger
+    // (a power of two: every product scales exactly), with the voxel area 64x larger, decimates the
+    // same way. The faces straddle the floor (areas from about 0.2 to 1.5 voxel faces).
+    auto run = [](double scale) {
+        Decimator d;
+        d.setVoxelArea(scale * scale);
+        d.addBlock(ellipsoid(4, {24, 8, 4}, scale));
+        d.decimateTo(200);
+        return d.mesh();
+    };
+    const Mesh m1 = run(1.0), m8 = run(8.0);
+    EXPECT_LE(m1.triangles.size(), 200u);
+    EXPECT_EQ(m1.triangles, m8.triangles);
+    ASSERT_EQ(m1.points.size(), m8.points.size());
+    for (size_t i = 0; i < m1.points.size(); ++i)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(8.0f * m1.points[i][k], m8.points[i][k]);
+}
+
 // A closed octahedron around `centre`, every vertex final; keys start at `firstKey`.
 BlockMesh octahedron(std::array<double, 3> centre, int32_t firstKey)
 {
