@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -76,6 +77,118 @@ TEST(Decimator, OctahedronShrinksToATetrahedronAndStopsThere)
     EXPECT_EQ(d.vertexCount(), 4u);
     const Mesh m = d.mesh();
     EXPECT_EQ(m.triangles.size(), 4u);
+}
+
+TEST(Decimator, ZeroWidthNeckOfASmallTorusOpens)
+{
+    // A 9-vertex torus (what a small handle of integer CT data, iso-value on an integer, shrank to):
+    // vertices 1 and 2 lie a rounding error apart on a voxel corner at the iso-value, so the two faces
+    // on edge 1-2 have no area. The link condition refuses every edge (a minimal torus), so only
+    // opening the neck (moving one of the two a hair along its normal) removes them; the old normals
+    // of those two faces are rounding noise and must not decide whether that move is valid.
+    BlockMesh b;
+    const std::array<double, 3> p[9] = {
+        {44.7813554, 42.0425798, 80.8337389}, {48, 41.999999999999993, 84}, {48, 42, 84},
+        {49.5595347, 40.8483184, 82.9723859}, {44.1156819, 40.0644688, 84.4453669}, {47.8149359, 43.7845916, 85.9048014},
+        {50.8906951, 43.6205213, 83.7064036}, {47.9979001, 42.0014957, 83.9997829}, {49.1802861, 40.2894337, 86.8856933}};
+    for (int k = 0; k < 9; ++k) {
+        b.keys.push_back(makeEdgeKey(k, 0, 0, 0));
+        b.positions.push_back(p[k]);
+        b.finalAfterBlock.push_back(1);
+    }
+    b.triangles = {{0, 1, 2}, {3, 4, 0}, {0, 4, 5}, {0, 6, 3}, {7, 0, 2}, {6, 0, 7}, {5, 1, 0}, {8, 1, 7}, {4, 1, 8},
+                   {1, 3, 2}, {4, 3, 1}, {5, 7, 1}, {7, 2, 3}, {7, 3, 8}, {3, 6, 8}, {8, 5, 4}, {5, 8, 6}, {6, 7, 5}};
+    // Two unit tetrahedra span the rest of the volume (160 voxels): the move is 1e-5 of the diagonal.
+    for (const std::array<double, 3> o : {std::array<double, 3>{5, 5, 5}, std::array<double, 3>{153, 153, 153}}) {
+        const uint32_t base = uint32_t(b.keys.size());
+        const std::array<double, 3> corners[4] = {{o[0], o[1], o[2]}, {o[0] + 1, o[1], o[2]}, {o[0], o[1] + 1, o[2]}, {o[0], o[1], o[2] + 1}};
+        for (int k = 0; k < 4; ++k) {
+            b.keys.push_back(makeEdgeKey(int32_t(base) + k, 0, 0, 0));
+            b.positions.push_back(corners[k]);
+            b.finalAfterBlock.push_back(1);
+        }
+        for (const auto& t : {std::array<uint32_t, 3>{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}})
+            b.triangles.push_back({base + t[0], base + t[1], base + t[2]});
+    }
+    Decimator d;
+    d.addBlock(b);
+    d.requeueAll();
+    d.decimateTo(0);
+    EXPECT_EQ(d.faceCount(), 26u);  // a minimal torus and two tetrahedra: no collapse keeps them manifold
+    EXPECT_EQ(d.removeDegenerateFaces(), 0u);
+    const Mesh m = d.mesh();
+    ASSERT_EQ(m.triangles.size(), 26u);
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (const auto& q : m.points)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], double(q[k]));
+            hi[k] = std::max(hi[k], double(q[k]));
+        }
+    const double diagonal2 = (hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]);
+    for (const auto& t : m.triangles) {
+        std::array<double, 3> e1, e2;
+        for (int k = 0; k < 3; ++k) {
+            e1[k] = double(m.points[t[1]][k]) - double(m.points[t[0]][k]);
+            e2[k] = double(m.points[t[2]][k]) - double(m.points[t[0]][k]);
+        }
+        const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+        EXPECT_GT(0.5 * std::sqrt(cx * cx + cy * cy + cz * cz), 1e-12 * diagonal2);
+    }
+}
+
+// An octahedron subdivided `levels` times and pushed onto an ellipsoid with semi-axes `axes`: faces of
+// many sizes, every vertex final.
+BlockMesh ellipsoid(int levels, std::array<double, 3> axes, double scale)
+{
+    std::vector<std::array<double, 3>> p = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    std::vector<std::array<uint32_t, 3>> t = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    for (int l = 0; l < levels; ++l) {
+        std::vector<std::array<uint32_t, 3>> next;
+        std::vector<std::pair<std::pair<uint32_t, uint32_t>, uint32_t>> mid;
+        auto midpoint = [&](uint32_t a, uint32_t b) {
+            const auto key = std::make_pair(std::min(a, b), std::max(a, b));
+            for (const auto& [k, v] : mid)
+                if (k == key) return v;
+            std::array<double, 3> m{(p[a][0] + p[b][0]) / 2, (p[a][1] + p[b][1]) / 2, (p[a][2] + p[b][2]) / 2};
+            const double len = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+            p.push_back({m[0] / len, m[1] / len, m[2] / len});
+            mid.push_back({key, uint32_t(p.size() - 1)});
+            return uint32_t(p.size() - 1);
+        };
+        for (const auto& f : t) {
+            const uint32_t a = midpoint(f[0], f[1]), b = midpoint(f[1], f[2]), c = midpoint(f[2], f[0]);
+            next.insert(next.end(), {{f[0], a, c}, {a, f[1], b}, {c, b, f[2]}, {a, b, c}});
+        }
+        t = next;
+    }
+    BlockMesh b;
+    for (size_t k = 0; k < p.size(); ++k) {
+        b.keys.push_back(makeEdgeKey(int32_t(k), 0, 0, 0));
+        b.positions.push_back({scale * axes[0] * p[k][0], scale * axes[1] * p[k][1], scale * axes[2] * p[k][2]});
+        b.finalAfterBlock.push_back(1);
+    }
+    b.triangles = t;
+    return b;
+}
+
+TEST(Decimator, SameCollapsesInAnyUnitGivenTheVoxelArea)
+{
+    // Face weights have a floor relative to a voxel face's area: the same surface in units 8x larger
+    // (a power of two: every product scales exactly), with the voxel area 64x larger, decimates the
+    // same way. The faces straddle the floor (areas from about 0.2 to 1.5 voxel faces).
+    auto run = [](double scale) {
+        Decimator d;
+        d.setVoxelArea(scale * scale);
+        d.addBlock(ellipsoid(4, {24, 8, 4}, scale));
+        d.decimateTo(200);
+        return d.mesh();
+    };
+    const Mesh m1 = run(1.0), m8 = run(8.0);
+    EXPECT_LE(m1.triangles.size(), 200u);
+    EXPECT_EQ(m1.triangles, m8.triangles);
+    ASSERT_EQ(m1.points.size(), m8.points.size());
+    for (size_t i = 0; i < m1.points.size(); ++i)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(8.0f * m1.points[i][k], m8.points[i][k]);
 }
 
 // A closed octahedron around `centre`, every vertex final; keys start at `firstKey`.

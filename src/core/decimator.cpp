@@ -271,16 +271,24 @@ void Decimator::addBlock(const BlockMesh& block)
     for (const auto& t : block.triangles) {
         const std::array<uint32_t, 3> v{ids[t[0]], ids[t[1]], ids[t[2]]};
         newFace(v);
-        // Area-weighted plane quadric of the face, and its anchor, added to its three corners.
-        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
+        // The face's plane quadric, and its anchor, added to its three corners, weighted by the face's
+        // area but never below mMinPlaneWeight: large flat faces outweigh the small faces Marching Cubes
+        // cuts where the surface bends (a chamfer along a sharp edge), and tiny faces still count, so a
+        // thin feature made of them (a filament a fraction of a voxel wide) is not free to remove.
+        // A face without area (coincident vertices at a voxel on the iso-value) has no plane: its
+        // normal is rounding noise.
+        const V3 &p0 = mGeom[v[0]].p, &p1 = mGeom[v[1]].p, &p2 = mGeom[v[2]].p;
+        const V3 n = cross(sub(p1, p0), sub(p2, p0));
         const double len = std::sqrt(dot(n, n));
-        if (len > 0) {
+        const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
+        if (len > kDegenerateShape * edges) {
             const V3 u{n[0] / len, n[1] / len, n[2] / len};
-            const double d = -dot(u, mGeom[v[0]].p);
+            const double d = -dot(u, p0);
+            const double weight = std::max(0.5 * len, mMinPlaneWeight);
             for (uint32_t x : v) {
                 // The plane around each corner (it passes through all three, up to rounding).
-                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), 0.5 * len);
-                mGeom[x].q.addPoint(kAnchorWeight * 0.5 * len);
+                mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), weight);
+                mGeom[x].q.addPoint(kAnchorWeight * weight);
             }
         }
     }
@@ -401,16 +409,21 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         const V3& a = mGeom[fv[0]].p;
         const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
         const double lenOld = std::sqrt(dot(nOld, nOld));
+        auto edgesOld = [&] {
+            return dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
+                   dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
+                   dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
+        };
         if (!(lenNew > kMinShape * edges)) {
             // A face that was already degenerate (values exactly at the iso-value make coincident
             // vertices) may stay so: refusing would pin it forever instead of letting it be collapsed.
-            const double edgesOld = dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
-                                    dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
-                                    dot(sub(a, mGeom[fv[2]].p), sub(a, mGeom[fv[2]].p));
-            if (lenOld > kMinShape * edgesOld) return false;
+            if (lenOld > kMinShape * edgesOld()) return false;
             continue;
         }
-        if (lenOld > 0 && dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew) return false;
+        // A face without area has no orientation to keep: the normal of vertices a rounding error apart
+        // points anywhere, and comparing with it would refuse, at random, the moves that open a
+        // zero-width neck (coincident vertices around a voxel at the iso-value on a small handle).
+        if (dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew && lenOld > kDegenerateShape * edgesOld()) return false;
     }
     return true;
 }

@@ -70,6 +70,10 @@ public:
     // mesh above its target.
     void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
 
+    // Area of a voxel's face in the units of the positions (the grid's transform; default: index
+    // space). Faces count with their area in the error quadrics, but at least 0.4 of this (addBlock).
+    void setVoxelArea(double area) { mMinPlaneWeight = kMinPlaneWeight * area; }
+
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
     void setInterrupter(std::function<bool()> stop) { mStop = std::move(stop); }
@@ -195,6 +199,8 @@ private:
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0, mAttempts = 0;
     double mMinNormalCos = 0.17;
+    static constexpr double kMinPlaneWeight = 0.4;  // of a voxel face's area
+    double mMinPlaneWeight = kMinPlaneWeight;
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;

@@ -202,6 +202,9 @@ void PipelineRun::runSlabs()
     mSlabs = splitSlabs(mBlocks, kPipelineSlabs);
     const uint64_t batch = std::max<uint64_t>(1000, mOpt.batchFaces / mSlabs.size());
     for (uint32_t i = 0; i < mSlabs.size(); ++i) mIntegs.push_back(std::make_unique<Integrator>(mOpt, mRatio, batch, i));
+    // The decimator's least face weight is a fraction of a voxel face, in world units.
+    const double voxelArea = std::pow(std::abs(mInfo.indexToWorld.determinant()), 2.0 / 3.0);
+    for (auto& integ : mIntegs) integ->decimator().setVoxelArea(voxelArea);
     mReleased = true;
     // Decimation passes poll the same progress object, so a cancel request stops them too.
     if (mProgress)
