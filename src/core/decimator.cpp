@@ -29,8 +29,8 @@ constexpr double kDegenerateShape = 1e-10;
 // a vertex costs a little for the distance from where its merged vertices were. Among collapses that
 // cost nothing on the planes (flat regions, straight edges, coincident twins where voxels sit at the
 // iso-value) the shortest then go first and survivors settle at the centroid of what they absorbed,
-// instead of exact ties broken by vertex index sweeping flat regions into fans (on exactly planar
-// data, a rotated box, that cost 6x the RMS error at R = 0.05). Far below the plane terms: a vertex
+// instead of exact ties broken by vertex index sweeping flat regions into fans across exactly planar
+// data. Far below the plane terms: a vertex
 // moved across a face keeps 1e-8 of the cost of moving it off the face's plane by the same distance.
 constexpr double kAnchorWeight = 1e-8;
 
@@ -428,23 +428,29 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
     return true;
 }
 
-Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
+// The two faces on edge ab and their opposite corners, and the link condition. Leaves both ends'
+// rings in mScratchA, each neighbour stamped with the end(s) it belongs to.
+bool Decimator::edgeMayCollapse(uint32_t a, uint32_t b, EdgeLink& e)
 {
     // The two faces on edge ab and their opposite corners; the valence of a on the way.
-    uint32_t shared[2], opposite[2];
+    uint32_t* shared = e.shared;
+    uint32_t* opposite = e.opposite;
     int ns = 0;
-    size_t valenceA = 0, valenceB = 0;
+    size_t& valenceA = e.valenceA;
+    size_t& valenceB = e.valenceB;
     for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
         const auto& fv = mFaces[c / 3].v;
         if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
-        if (ns == 2) return Outcome::Refused;  // non-manifold edge
+        if (ns == 2) return false;  // non-manifold edge
         shared[ns] = c / 3;
         opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
     }
-    if (ns != 2 || opposite[0] == opposite[1]) return Outcome::Refused;
+    if (ns != 2 || opposite[0] == opposite[1]) return false;
     // Link condition: the only common neighbours of a and b are the two opposite corners. The rings
     // are walked once with stamps: mScratchA gets the union of both rings (what needs requeueing).
     const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
+    e.inA = inA;
+    e.inB = inB;
     std::vector<uint32_t>& ring = mScratchA;
     ring.clear();
     for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
@@ -466,7 +472,7 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
                 ring.push_back(x);
             }
         }
-    if (common != 2) return Outcome::Refused;
+    if (common != 2) return false;
     // A face on both sides of the common pair (a tetrahedron-like pocket) would be doubled.
     auto hasFaceWith = [&](uint32_t v) {
         for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
@@ -477,24 +483,18 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
         }
         return false;
     };
-    if (hasFaceWith(a) && hasFaceWith(b)) return Outcome::Refused;
-    // The cheapest placement that keeps every face valid. Its cost, not the bound the pair was queued
-    // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
-    // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
-    Placement places[kPlacements];
-    const size_t count = placements(a, b, places, false);
-    size_t place = 0;
-    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
-    if (place == count) return Outcome::Refused;
-    if (cost) *cost = places[place].cost;
-    if (float(places[place].cost) > maxCost) return Outcome::Costlier;
-    const V3 target = places[place].p;
+    if (hasFaceWith(a) && hasFaceWith(b)) return false;
+    return true;
+}
 
+// Moves `keep`'s end of ab to `target` and hands it the other end's faces (edgeMayCollapse's rings).
+void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& target)
+{
     // Keep the end with more faces (a shorter list to relink); the other one dies.
-    const uint32_t keep = valenceA >= valenceB ? a : b;
+    const uint32_t keep = e.valenceA >= e.valenceB ? a : b;
     const uint32_t gone = keep == a ? b : a;
-    killFace(shared[0]);
-    killFace(shared[1]);
+    killFace(e.shared[0]);
+    killFace(e.shared[1]);
     VertexMeta& vk = mMeta[keep];
     const VertexMeta& vg = mMeta[gone];
     // Hand gone's corners to keep: rename, then splice gone's list in front of keep's.
@@ -513,13 +513,32 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     gk.p = target;
     ++vk.version;
     ++vk.ring;
+    const std::vector<uint32_t>& ring = mScratchA;
     for (uint32_t n : ring) ++mMeta[n].ring;
     killVertex(gone);
     // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
     // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
-    const uint32_t brought = gone == a ? inA : inB;
+    const uint32_t brought = gone == a ? e.inA : e.inB;
     for (uint32_t n : ring)
         if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
+}
+
+Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
+{
+    EdgeLink e;
+    if (!edgeMayCollapse(a, b, e)) return Outcome::Refused;
+    // The cheapest placement that keeps every face valid. Its cost, not the bound the pair was queued
+    // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
+    // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
+    Placement places[kPlacements];
+    const size_t count = placements(a, b, places, false);
+    size_t place = 0;
+    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
+    if (place == count) return Outcome::Refused;
+    if (cost) *cost = places[place].cost;
+    if (float(places[place].cost) > maxCost) return Outcome::Costlier;
+
+    mergeEnds(a, b, e, places[place].p);
     return Outcome::Collapsed;
 }
 
@@ -544,7 +563,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
             // back if it is still the cheapest). No ring walk to check the pair is still an edge: an
             // edge between two living vertices never disappears (a collapse renames the dead end's
             // edges, it removes none of the survivor's), so it is one unless a dead end's slot went to
-            // a new vertex meanwhile (3% of these pairs on noise). collapse() finds no shared face
+            // a new vertex meanwhile (rare). collapse() finds no shared face
             // for such a pair and refuses it, so they cost one attempt and change no collapse.
             if (liveFinalPair(a, b)) push(a, b);
             continue;

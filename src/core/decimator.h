@@ -65,9 +65,10 @@ public:
     // Requeues every contractible edge: edges refused earlier may have become legal since.
     void requeueAll();
 
-    // Largest turn of a face normal a collapse may cause, as a cosine. Default: about 80 degrees. The
-    // final pass relaxes it when small closed components (noise, scans) would otherwise keep the
-    // mesh above its target.
+    // Largest turn of a face normal a collapse may cause, as a cosine: by default about 80 degrees, so
+    // no face flips or folds onto its neighbours. The final pass relaxes it when small closed
+    // components (noise, scans) would otherwise keep the mesh above its target.
+    static constexpr double kDefaultMinNormalCos = 0.17;
     void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
 
     // Area of a voxel's face in the units of the positions (the grid's transform; default: index
@@ -178,6 +179,14 @@ private:
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
     // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
     Outcome collapse(uint32_t a, uint32_t b, float maxCost, double* cost);
+    // What edgeMayCollapse learns of edge ab for mergeEnds.
+    struct EdgeLink {
+        uint32_t shared[2], opposite[2];  // the edge's two faces and their corners off the edge
+        size_t valenceA = 0, valenceB = 0;
+        uint32_t inA = 0, inB = 0;        // stamps of the neighbours each end brings
+    };
+    bool edgeMayCollapse(uint32_t a, uint32_t b, EdgeLink& e);
+    void mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const std::array<double, 3>& target);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
@@ -189,8 +198,8 @@ private:
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     QuadHeap<Candidate> mHeap;
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
-    // the sum of both ends' ring counters at refusal. (Closed tetrahedra in noisy data, refused at every
-    // batch, were a quarter of all collapse attempts before.)
+    // the sum of both ends' ring counters at refusal, so a collapse that cannot succeed (a closed
+    // tetrahedron in noisy data) is not tried again at every batch.
     struct Refused {
         uint32_t a, b, stamp;
     };
@@ -198,7 +207,7 @@ private:
 
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0, mAttempts = 0;
-    double mMinNormalCos = 0.17;
+    double mMinNormalCos = kDefaultMinNormalCos;
     static constexpr double kMinPlaneWeight = 0.4;  // of a voxel face's area
     double mMinPlaneWeight = kMinPlaneWeight;
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)

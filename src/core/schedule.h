@@ -66,14 +66,14 @@ public:
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
         // Then, only if still above target, allow larger normal turns step by step.
-        for (double turn : {0.17, 0.0, -0.3, -0.6}) {
+        for (double turn : {Decimator::kDefaultMinNormalCos, 0.0, -0.3, -0.6}) {
             mDec.setMaxNormalTurn(turn);
             while (mDec.faceCount() > targetFaces) {
                 mDec.requeueAll();
                 if (mDec.decimateTo(targetFaces) == 0) break;
             }
         }
-        mDec.setMaxNormalTurn(0.17);
+        mDec.setMaxNormalTurn(Decimator::kDefaultMinNormalCos);
         // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
         if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
         // Still above target (more than 1%): the surface is mostly small closed components that no
