@@ -1,5 +1,6 @@
 // mesh_error: metro-style distance between two triangle meshes (mean, RMS and max of A->B and
 // B->A, symmetric Hausdorff distance), in absolute units and in % of A's bounding box diagonal.
+#include "cli_parse.h"
 #include "json_text.h"
 #include "mesh_error.h"
 #include "mesh_io.h"
@@ -61,14 +62,7 @@ int main(int argc, char** argv) {
     app.add_flag("--json", json, "Print one JSON object instead of the table");
     app.add_option("--threads,-j", threads, "Worker threads (0 = all cores); results do not depend on it")
         ->check(CLI::NonNegativeNumber);
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) { // usage errors: exit 2, file errors below: exit 1
-        std::cerr << "mesh_error: " << e.what() << " (see --help)\n";
-        return 2;
-    }
+    if (const int code = parseCommandLine(app, argc, argv, "mesh_error"); code >= 0) return code;
 
     try {
         std::unique_ptr<tbb::global_control> limit;

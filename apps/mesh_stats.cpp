@@ -1,6 +1,7 @@
 // mesh_stats: topology and geometry statistics of a triangle mesh file (sizes, boundary,
 // non-manifold and misoriented elements, components, Euler characteristic, volume, area,
 // triangle quality, bounding box).
+#include "cli_parse.h"
 #include "json_text.h"
 #include "mesh_io.h"
 #include "mesh_stats.h"
@@ -32,14 +33,7 @@ int main(int argc, char** argv) {
                    "Faces with area <= this (absolute, squared units) count as zero-area; 0 = exactly zero")
         ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) { // usage errors: exit 2, file errors below: exit 1
-        std::cerr << "mesh_stats: " << e.what() << " (see --help)\n";
-        return 2;
-    }
+    if (const int code = parseCommandLine(app, argc, argv, "mesh_stats"); code >= 0) return code;
 
     try {
         const Mesh mesh = eval::readMesh(path);

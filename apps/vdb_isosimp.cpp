@@ -1,6 +1,7 @@
 // vdb_isosimp IN.vdb: parse the command line, run one library call, report. Errors become one line on
 // stderr and an exit code: 1 bad input or output, 2 bad usage, 3 no surface at the iso-value.
 #include "cli_numbers.h"
+#include "cli_parse.h"
 #include "json_text.h"
 #include "vdb_isosimp/errors.h"
 #include "vdb_isosimp/mesh_writer.h"
@@ -287,14 +288,7 @@ int main(int argc, char** argv)
                    "machine's physical memory, or the container's limit when lower")
         ->default_val(maxMemory);
 
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) {
-        std::cerr << "vdb_isosimp: " << e.what() << " (see --help)\n";
-        return 2;
-    }
+    if (const int code = parseCommandLine(app, argc, argv, "vdb_isosimp"); code >= 0) return code;
     if (*isoOpt) opt.iso = iso;
     if (*isoOpt && !std::isfinite(iso)) {
         std::cerr << "vdb_isosimp: --iso must be a finite number (see --help)\n";
