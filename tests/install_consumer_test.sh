@@ -15,7 +15,7 @@ done
 # The consumer sees the installed prefix only: not the source tree, not the build tree.
 cmake -S "$src/examples/consumer" -B "$work/consumer" -DCMAKE_BUILD_TYPE=Release \
       -DCMAKE_PREFIX_PATH="$work/prefix" > "$work/configure.log" 2>&1 || { cat "$work/configure.log"; exit 1; }
-if grep -rq -- "$src/src\|$build" "$work/consumer/CMakeFiles/simplify_sphere.dir/flags.make"; then
+if grep -rq -- "$src/src\|$src/include\|$build" "$work/consumer/CMakeFiles/simplify_sphere.dir/flags.make"; then
   echo "consumer compiles against the source or build tree:"; cat "$work/consumer/CMakeFiles/simplify_sphere.dir/flags.make"; exit 1
 fi
 cmake --build "$work/consumer" -j2 > "$work/build.log" 2>&1 || { cat "$work/build.log"; exit 1; }
