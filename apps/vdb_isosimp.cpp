@@ -167,6 +167,11 @@ std::string reportJson(const Report& r, const std::string& output, const Options
         j << "  \"" << f.name << "\": ";
         if (f.kind == ReportField::Kind::Text) j << jsonString(f.text);
         else if (f.kind == ReportField::Kind::Integer) j << f.integer;
+        else if (f.kind == ReportField::Kind::Reals) {
+            j << '[';
+            for (size_t k = 0; k < f.reals.size(); ++k) j << (k ? ", " : "") << f.reals[k];
+            j << ']';
+        }
         else j << f.real;
         j << (i + 1 < fields.size() ? ",\n" : "\n");
         if (f.name == "input") j << "  \"output\": " << jsonString(output) << ",\n";
@@ -275,6 +280,12 @@ int main(int argc, char** argv)
     app.add_option("-j,--threads", opt.threads, "Worker threads, 0 = all cores; the output is the same for any count")
         ->default_val(opt.threads)
         ->check(CLI::Range(0, 1024));
+    app.add_option("--slab-blocks", opt.blocksPerSlab,
+                   "Blocks (8^3 cells) per slab: the volume is cut into slabs of this many blocks (at most 256\n"
+                   "slabs), the independent pieces threads and MPI ranks share, joined by a fixed merge tree.\n"
+                   "Changes the output slightly (more slabs, more seams); threads and ranks never do")
+        ->default_val(opt.blocksPerSlab)
+        ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
     app.add_option("--report", reportPath, "Also write a JSON report (faces, decimations, memory, time) to this file");
     app.add_option("--trace", tracePath,
                    "Also write one CSV row per decimation: decimation,faces_generated,faces_before,faces_after,\n"

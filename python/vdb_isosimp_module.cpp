@@ -40,6 +40,7 @@ py::dict reportDict(const Report& r, const Options& o)
         const char* key = f.name.c_str();
         if (f.kind == ReportField::Kind::Text) d[key] = f.text;
         else if (f.kind == ReportField::Kind::Integer) d[key] = f.integer;
+        else if (f.kind == ReportField::Kind::Reals) d[key] = py::cast(f.reals);
         else d[key] = f.real;
     }
     return d;

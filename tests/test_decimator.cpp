@@ -1,6 +1,7 @@
 // The decimator on hand-made meshes: what a pass tries and what it may not do.
 #include "core/decimator.h"
 #include "core/edge_key.h"
+#include "core/piece_bytes.h"
 
 #include <gtest/gtest.h>
 
@@ -189,6 +190,81 @@ TEST(Decimator, SameCollapsesInAnyUnitGivenTheVoxelArea)
     ASSERT_EQ(m1.points.size(), m8.points.size());
     for (size_t i = 0; i < m1.points.size(); ++i)
         for (int k = 0; k < 3; ++k) EXPECT_EQ(8.0f * m1.points[i][k], m8.points[i][k]);
+}
+
+// The two halves of an ellipsoid (faces above and below z = 0) as two slabs: vertices of both halves
+// are open in each, the others final.
+std::array<BlockMesh, 2> ellipsoidHalves()
+{
+    const BlockMesh whole = ellipsoid(4, {24, 8, 4}, 1.0);
+    std::vector<int> side(whole.keys.size(), 0);  // bit 0: used below, bit 1: used above
+    auto above = [&](const std::array<uint32_t, 3>& t) {
+        return whole.positions[t[0]][2] + whole.positions[t[1]][2] + whole.positions[t[2]][2] > 0;
+    };
+    for (const auto& t : whole.triangles)
+        for (uint32_t v : t) side[v] |= above(t) ? 2 : 1;
+    std::array<BlockMesh, 2> halves;
+    for (int h = 0; h < 2; ++h) {
+        std::vector<uint32_t> local(whole.keys.size(), UINT32_MAX);
+        for (const auto& t : whole.triangles) {
+            if (above(t) != (h == 1)) continue;
+            std::array<uint32_t, 3> f;
+            for (int k = 0; k < 3; ++k) {
+                if (local[t[k]] == UINT32_MAX) {
+                    local[t[k]] = uint32_t(halves[h].keys.size());
+                    halves[h].keys.push_back(whole.keys[t[k]]);
+                    halves[h].positions.push_back(whole.positions[t[k]]);
+                    halves[h].finalAfterBlock.push_back(side[t[k]] == 3 ? 0 : 1);
+                }
+                f[k] = local[t[k]];
+            }
+            halves[h].triangles.push_back(f);
+        }
+    }
+    return halves;
+}
+
+TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
+{
+    // A merge joins a piece made in this process or one read from the bytes another process sent:
+    // the result must be the same mesh, collapse for collapse.
+    auto run = [](bool throughBytes) {
+        const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+        Decimator lower, upper;
+        lower.addBlock(halves[0]);
+        upper.addBlock(halves[1]);
+        lower.decimateTo(300);
+        upper.decimateTo(300);
+        EXPECT_GT(upper.openVertices(), 10u);
+        SlabPiece piece{upper.takePiece(), 1000, {}};
+        EXPECT_EQ(upper.faceCount(), 0u);
+        if (throughBytes) {
+            std::vector<char> bytes;
+            writePieceBytes(std::move(piece), bytes);
+            piece = readPieceBytes(bytes.data(), bytes.size());
+            EXPECT_EQ(piece.facesGenerated, 1000u);
+        }
+        lower.absorb(std::move(piece.mesh));
+        EXPECT_EQ(lower.finalizeRemaining(), halves[0].keys.size() - size_t(std::count(halves[0].finalAfterBlock.begin(), halves[0].finalAfterBlock.end(), 1)));
+        lower.decimateTo(120);
+        return lower.mesh();
+    };
+    const Mesh home = run(false), travelled = run(true);
+    EXPECT_LE(home.triangles.size(), 120u);
+    EXPECT_EQ(home.triangles, travelled.triangles);
+    EXPECT_EQ(home.points, travelled.points);
+}
+
+TEST(Decimator, PieceBytesThatEndEarlyAreRefused)
+{
+    const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+    Decimator d;
+    d.addBlock(halves[1]);
+    std::vector<char> bytes;
+    writePieceBytes(SlabPiece{d.takePiece(), 0, {}}, bytes);
+    for (size_t cut : {size_t(0), size_t(7), bytes.size() / 2, bytes.size() - 1})
+        EXPECT_THROW(readPieceBytes(bytes.data(), cut), std::runtime_error) << cut;
+    EXPECT_NO_THROW(readPieceBytes(bytes.data(), bytes.size()));
 }
 
 // A closed octahedron around `centre`, every vertex final; keys start at `firstKey`.

@@ -60,7 +60,8 @@ TEST(Schedule, PassesEveryHalfBatchToTheTargetPlusDeferral)
             integ.finishSlab();
             ASSERT_EQ(integ.facesGenerated(), generated);
             ASSERT_GT(generated, 10 * batch) << "too few faces to exercise the schedule";
-            const std::vector<DecimationRecord>& trace = integ.stats().trace;
+            const SlabStats stats = integ.stats();
+            const std::vector<DecimationRecord>& trace = stats.trace;
             ASSERT_GE(trace.size(), generated / batch);
             uint64_t previous = 0;
             size_t reached = 0;

@@ -54,6 +54,11 @@ struct Options {
     // grid's topology exceeds this many bytes; checked on the opened grid before any voxel is read
     // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
     uint64_t maxMemoryBytes = 0;
+    // Blocks (8^3 cells) per slab: the blocks are cut into slabs of this many (at most 256 slabs), the
+    // independent pieces of work that threads and MPI ranks share, joined by a fixed merge tree.
+    // Changes the output (more slabs: more seams, each decimated when its two sides join); the output
+    // never depends on threads or ranks. Default 2048.
+    uint64_t blocksPerSlab = 2048;
 };
 
 // Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget
@@ -88,17 +93,22 @@ struct Report {
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
     double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
     double peakRssMb = 0.0;
+    uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
+    // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.
+    uint64_t ranks = 1;
+    std::vector<double> rankSeconds, rankPeakRssMb;
     std::vector<DecimationRecord> trace;
 };
 
 // One field of the report, named as the program's --report JSON and the Python dict name it.
 struct ReportField {
-    enum class Kind { Text, Integer, Real };
+    enum class Kind { Text, Integer, Real, Reals };
     std::string name;
     Kind kind = Kind::Text;
     std::string text;
     uint64_t integer = 0;
     double real = 0.0;
+    std::vector<double> reals;  // Kind::Reals: a list, one entry per rank
 };
 
 // Every field of a run's report, in the order --report writes them; the one list the program's JSON

@@ -299,79 +299,103 @@ void Decimator::addBlock(const BlockMesh& block)
         }
 }
 
-void Decimator::absorb(Decimator& other)
+MeshPiece Decimator::takePiece()
 {
-    // The merge is the peak of a run at R = 0.2, so each part of `other` is freed as soon as it has
-    // been copied. First what needs its vertices besides the vertices themselves: the queued edges
-    // (with whether each is stale) and the refused pairs whose ends live.
-    std::vector<Candidate> carried;
-    carried.reserve(other.mHeap.size());
-    for (const Candidate& c : other.mHeap)
-        if (other.mMeta[c.a()].alive && other.mMeta[c.b].alive) carried.push_back({c.key, c.b, other.current(c) ? 0u : 1u});
-    other.mHeap.clear();
-    other.mHeap.shrinkToFit();
-    std::vector<Refused> refused;
-    for (const Refused& r : other.mRefused)
-        if (other.mMeta[r.a].alive && other.mMeta[r.b].alive) refused.push_back(r);
+    dropDeadEntries();
+    MeshPiece piece;
+    // First what needs the vertices' state besides the vertices themselves: the queued edges (with
+    // whether each is stale) and the refused pairs whose ends live.
+    std::vector<uint32_t> dense(mMeta.size(), UINT32_MAX);
+    for (uint32_t v = 0, n = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive) dense[v] = n++;
+    piece.queue.reserve(mHeap.size());
+    for (const Candidate& c : mHeap)
+        if (mMeta[c.a()].alive && mMeta[c.b].alive) piece.queue.push_back({c.costBits(), dense[c.a()], dense[c.b], !current(c)});
+    mHeap.clear();
+    mHeap.shrinkToFit();
+    for (const Refused& r : mRefused)
+        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b]});
+    mRefused = {};
+    // Open vertices in key order (hash-map order is not part of the output contract).
+    piece.open.reserve(mOpen.size());
+    for (const auto& [key, id] : mOpen) piece.open.emplace_back(key, dense[id]);
+    std::sort(piece.open.begin(), piece.open.end());
+    mOpen = {};
+    constexpr size_t kVertChunk = decltype(mMeta)::kChunk, kFaceChunk = decltype(mFaces)::kChunk;
+    static_assert(kVertChunk == decltype(mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
+    for (uint32_t v = 0; v < mMeta.size(); ++v) {
+        if (mMeta[v].alive) piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final};
+        if ((v + 1) % kVertChunk == 0) {
+            mGeom.releaseChunk(v / kVertChunk);
+            mMeta.releaseChunk(v / kVertChunk);
+        }
+    }
+    for (size_t i = 0; i < mFaces.size(); ++i) {
+        const Face& f = mFaces[i];
+        if (f.alive) piece.faces.emplace_back() = {dense[f.v[0]], dense[f.v[1]], dense[f.v[2]]};
+        if ((i + 1) % kFaceChunk == 0) mFaces.releaseChunk(i / kFaceChunk);
+    }
+    *this = Decimator{};
+    return piece;
+}
 
-    std::vector<uint32_t> remap(other.mMeta.size(), UINT32_MAX);
-    // Open vertices first, in key order (hash-map order is not part of the output contract).
-    std::vector<std::pair<EdgeKey, uint32_t>> open(other.mOpen.begin(), other.mOpen.end());
-    std::sort(open.begin(), open.end());
-    for (const auto& [key, id] : open) {
+void Decimator::absorb(MeshPiece&& piece)
+{
+    const size_t n = piece.vertices.size();
+    std::vector<uint32_t> remap(n, UINT32_MAX);
+    for (const auto& [key, id] : piece.open) {
+        const MeshPiece::Vertex& theirs = piece.vertices[id];
         auto it = mOpen.find(key);
         if (it != mOpen.end()) {
             remap[id] = it->second;
             VertexGeom& mine = mGeom[it->second];
-            const VertexGeom& theirs = other.mGeom[id];
             mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
         } else {
-            remap[id] = newVertex(other.mGeom[id].p);
-            mGeom[remap[id]].q = other.mGeom[id].q;
+            remap[id] = newVertex(theirs.p);
+            mGeom[remap[id]].q = theirs.q;
             mOpen.emplace(key, remap[id]);
         }
     }
-    constexpr size_t kVertChunk = decltype(other.mMeta)::kChunk, kFaceChunk = decltype(other.mFaces)::kChunk;
-    static_assert(kVertChunk == decltype(other.mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
-    for (uint32_t v = 0; v < other.mMeta.size(); ++v) {
-        if (other.mMeta[v].alive && remap[v] == UINT32_MAX) {
-            remap[v] = newVertex(other.mGeom[v].p);
-            mGeom[remap[v]].q = other.mGeom[v].q;
-            mMeta[remap[v]].final = other.mMeta[v].final;
+    piece.open = {};
+    constexpr size_t kVertChunk = decltype(piece.vertices)::kChunk, kFaceChunk = decltype(piece.faces)::kChunk;
+    for (uint32_t v = 0; v < n; ++v) {
+        if (remap[v] == UINT32_MAX) {
+            const MeshPiece::Vertex& theirs = piece.vertices[v];
+            remap[v] = newVertex(theirs.p);
+            mGeom[remap[v]].q = theirs.q;
+            mMeta[remap[v]].final = theirs.final;
         }
-        if ((v + 1) % kVertChunk == 0) {
-            other.mGeom.releaseChunk(v / kVertChunk);
-            other.mMeta.releaseChunk(v / kVertChunk);
-        }
+        if ((v + 1) % kVertChunk == 0) piece.vertices.releaseChunk(v / kVertChunk);
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
     // Reserved with room for the seam's edges only: doubling could leave half of the largest array of
     // the run unused.
-    mHeap.reserve(mHeap.size() + carried.size() + carried.size() / 16 + 4096);
-    const bool pushEach = mHeap.size() > carried.size();
-    for (const Candidate& c : carried) {
-        const uint32_t a = remap[c.a()], b = remap[c.b];
+    mHeap.reserve(mHeap.size() + piece.queue.size() + piece.queue.size() / 16 + 4096);
+    const bool pushEach = mHeap.size() > piece.queue.size();
+    for (const MeshPiece::Queued& c : piece.queue) {
+        const uint32_t a = remap[c.a], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
-        const uint32_t stamp = mMeta[a].version + mMeta[b].version - c.stamp;
+        const uint32_t stamp = mMeta[a].version + mMeta[b].version - (c.stale ? 1u : 0u);
         // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
         // smaller one they are appended and the whole is ordered once when next used.
-        const Candidate e = Candidate::make(c.costBits(), std::min(a, b), std::max(a, b), stamp);
+        const Candidate e = Candidate::make(c.costBits, std::min(a, b), std::max(a, b), stamp);
         if (pushEach) mHeap.push(e);
         else mHeap.append(e);
     }
-    carried = {};
+    piece.queue = {};
     // Refused entries come along marked as changed: retried in the next pass.
-    for (const Refused& r : refused) {
-        const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
+    for (const auto& r : piece.refused) {
+        const uint32_t a = std::min(remap[r[0]], remap[r[1]]), b = std::max(remap[r[0]], remap[r[1]]);
         mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1});
     }
-    for (size_t i = 0; i < other.mFaces.size(); ++i) {
-        const Face& f = other.mFaces[i];
-        if (f.alive) newFace({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
-        if ((i + 1) % kFaceChunk == 0) other.mFaces.releaseChunk(i / kFaceChunk);
+    piece.refused = {};
+    for (size_t i = 0; i < piece.faces.size(); ++i) {
+        const auto& f = piece.faces[i];
+        newFace({remap[f[0]], remap[f[1]], remap[f[2]]});
+        if ((i + 1) % kFaceChunk == 0) piece.faces.releaseChunk(i / kFaceChunk);
     }
-    other = Decimator{};
+    piece = MeshPiece{};
 }
 
 size_t Decimator::finalizeRemaining()

@@ -26,6 +26,27 @@
 
 namespace vdb_isosimp {
 
+// A decimator's mesh as a merge hands it on (Decimator::takePiece): alive vertices renumbered densely
+// in id order, faces in id order, the open vertices by edge key, and the queue and refused pairs
+// that name live vertices. absorb() reads nothing else of the other side, so absorbing a piece made
+// here or one that travelled to another process (piece_bytes.h) gives the same mesh.
+struct MeshPiece {
+    struct Vertex {
+        std::array<double, 3> p;
+        Quadric q;
+        bool final;
+    };
+    struct Queued {
+        uint32_t costBits, a, b;
+        bool stale;  // an end changed since it was queued: re-evaluated when popped
+    };
+    ChunkedVector<Vertex> vertices;
+    ChunkedVector<std::array<uint32_t, 3>> faces;
+    std::vector<std::pair<EdgeKey, uint32_t>> open;  // sorted by key
+    std::vector<Queued> queue;                        // in the queue's array order
+    std::vector<std::array<uint32_t, 2>> refused;
+};
+
 class Decimator {
 public:
     // Welds the block's vertices to the open frontier by edge key, adds its faces and their quadrics,
@@ -36,10 +57,14 @@ public:
     // collapse is left. Returns the number of collapses made.
     size_t decimateTo(size_t targetFaces);
 
-    // Moves another decimator's mesh into this one (slab merge). Open vertices with the same edge key
-    // are welded and their quadrics summed; `other` is left empty. Its queued edges come along; edges
-    // at welded vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
-    void absorb(Decimator& other);
+    // Moves the mesh out into a piece for a merge (dead queue entries dropped first); this decimator
+    // is left empty. Each part is freed as soon as it is copied: the merges are the peak of a run.
+    MeshPiece takePiece();
+    // Adds a piece's mesh to this one (slab merge). Open vertices with the same edge key are welded
+    // and their quadrics summed; the piece is consumed. Its queued edges come along; edges at welded
+    // vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
+    void absorb(MeshPiece&& piece);
+    void absorb(Decimator& other) { absorb(other.takePiece()); }
 
     // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
     // where every slab's queue is copied).

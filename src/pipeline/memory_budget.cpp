@@ -1,6 +1,5 @@
 #include "pipeline/memory_budget.h"
 
-#include "pipeline/slabs.h"
 #include "vdb_isosimp/errors.h"
 
 #include <cerrno>
@@ -20,6 +19,7 @@ constexpr double kBytesPerFace = 300.0;
 constexpr double kFacesPerLeaf = 170.0;
 constexpr double kFacesPerShellBlock = 128.0;  // two triangles per cell of a flat 8x8 patch
 constexpr uint64_t kBaseBytes = 64ull << 20;
+constexpr uint64_t kLiveLeafLayers = 17;
 } // namespace
 
 MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o, uint64_t tileShellBlocks)
@@ -27,9 +27,9 @@ MemoryEstimate estimateMemory(const VolumeInfo& info, const Options& o, uint64_t
     MemoryEstimate e;
     e.base = kBaseBytes;
     e.topology = info.topologyBytes;
-    // Live voxels: per slab the layer being extracted and the one above it, every slab running at
-    // once (as many cores), plus the seam planes kept for the slabs below (at most a layer in all).
-    e.voxels = uint64_t(2 * kPipelineSlabs + 1) * info.maxLeavesPerLayer * 512u * info.valueBytes;
+    // Live voxels: per slab in progress the layer being extracted and the one above it (a slab per
+    // thread, up to 8 counted), plus the leaves shared with the next slab, kept until it has read them.
+    e.voxels = kLiveLeafLayers * info.maxLeavesPerLayer * 512u * info.valueBytes;
     // 8 candidate blocks per leaf of 12 bytes, doubled for the vector's growth and the sort.
     e.blocks = (info.leafCount * 8u + tileShellBlocks) * 12u * 2u;
     const double fullFaces = kFacesPerLeaf * double(info.leafCount) + kFacesPerShellBlock * double(tileShellBlocks);

@@ -1,12 +1,14 @@
 // The driver: a script of named stages (runPipeline).
 //   open (delayed loading) -> iso-value -> block list (z/y/x) -> [count faces, for a face target]
-//   -> slabs: extract blocks (parallel), integrate in order + decimate every B faces, join in order
-//   -> final decimation.
+//   -> slabs: extract blocks (parallel), integrate in order + decimate every B faces
+//   -> merge tree: siblings join, their seam is finalised and decimated (subtrees in parallel; with
+//      MPI ranks, each rank's subtree travels to its parent's rank) -> final decimation.
 #include "vdb_isosimp/vdb_isosimp.h"
 
 #include "core/decimator.h"
 #include "core/edge_key.h"
 #include "core/marching_cubes.h"
+#include "core/piece_bytes.h"
 #include "core/schedule.h"
 #include "pipeline/memory_budget.h"
 #include "pipeline/pipeline_internal.h"
@@ -19,11 +21,14 @@
 #include <tbb/task_arena.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -47,6 +52,7 @@ void checkOptions(const Options& o)
     if (!(o.initialRatio > 0.0 && o.initialRatio <= 1.0)) throw InputError("initial ratio must be in (0, 1]");
     if (o.threads < 0) throw InputError("threads must be >= 0");
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
+    if (o.blocksPerSlab < 1) throw InputError("blocks per slab must be at least 1");
 }
 
 // First stage of the pipelines below: next, next + 1, ... up to end (exclusive), in order. The counter
@@ -91,8 +97,8 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, const C
 // state they hand on.
 class PipelineRun {
 public:
-    PipelineRun(const std::string& path, const Options& opt, Progress* progress)
-        : mPath(path), mOpt(opt), mProgress(progress)
+    PipelineRun(const std::string& path, const Options& opt, Progress* progress, RankChannel* ranks)
+        : mPath(path), mOpt(opt), mProgress(progress), mRanks(ranks)
     {
     }
 
@@ -100,13 +106,25 @@ public:
     void chooseIso();
     void listBlocks();
     void setTarget(const VolumeOpener& open);
-    void runSlabs();
+    void splitSlabs();
+    void agreeAmongRanks(const std::string& error);
+    bool runTree();
     Result finalPass();
+    Result rankReport();
 
 private:
-    void extractSlab(size_t si);
+    using IntegratorPtr = std::unique_ptr<Integrator>;
+    IntegratorPtr rankSubtree(size_t l, size_t r, size_t a, size_t b);
+    IntegratorPtr localSubtree(size_t l, size_t r);
+    void join(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
+    IntegratorPtr extractSlab(size_t si);
+    void countLeafSamplers(size_t begin, size_t end);
     void meshBlock(size_t si, size_t i, BlockMesh& m) const;
-    void integrateBlock(Integrator& integ, size_t si, const BlockMesh& m);
+    void integrateBlock(Integrator& integ, const BlockMesh& m);
+    void releaseSampledLeaves(size_t i);
+    size_t blockIndex(const BlockOrigin& o) const;
+    std::vector<char> rankMessage(SlabPiece&& piece) const;
+    SlabPiece readRankMessage(const std::vector<char>& bytes);
     EmptySurfaceError noSurface() const;
 
     static constexpr size_t kMallocTrimEveryBlocks = 4096;
@@ -115,6 +133,7 @@ private:
     const std::string& mPath;
     const Options& mOpt;
     Progress* mProgress;
+    RankChannel* mRanks;  // null: this process runs the whole tree
     Stopwatch mClock;
     Result mResult;
     std::unique_ptr<Volume> mVol;
@@ -124,13 +143,24 @@ private:
     std::vector<BlockOrigin> mBlocks;
     double mRatio = 0.0;
     std::vector<Slab> mSlabs;
-    std::vector<std::unique_ptr<Integrator>> mIntegs;
+    uint64_t mSlabBatch = 0;
+    double mVoxelArea = 0.0;
+    IntegratorPtr mRoot;  // the tree's result: the whole surface (rank 0 only, in a distributed run)
+    // How many blocks still to be integrated sample each block's leaf (its own block and the up to 7
+    // below, behind and left of it that this process extracts): at zero the leaf is freed.
+    std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
+    size_t mRankBlocks = 0;  // blocks this process extracts (all of them without ranks)
+    // Seconds and peak memory of each rank (rank 0 first), gathered up the tree with the meshes.
+    std::vector<double> mRankSeconds, mRankPeakRss;
     // Range of the values sampled so far; voxel buffers are released as blocks finish, so the grid
     // itself can no longer be asked once extraction has run.
     std::array<double, 2> mSampled{0.0, 0.0};
     bool mReleased = false;
     std::mutex mProgressMutex;  // guards mSampled, mDone and the progress object
     size_t mDone = 0;
+    // Blocks per slab batch: B is shared by up to this many slabs in progress at once, so their
+    // intermediate meshes together stay within R*F + B on up to 8 cores.
+    static constexpr uint64_t kBatchShares = 8;
 };
 
 void PipelineRun::openVolume(const VolumeOpener& open)
@@ -192,60 +222,108 @@ void PipelineRun::setTarget(const VolumeOpener& open)
     mRatio = std::min(1.0, double(mOpt.targetFaces) / double(rep.facesFull));
 }
 
-// Slabs: whole block layers, each extracted and decimated on its own, in parallel when threads allow.
-// Vertices on the x/y edges of a slab's first voxel layer are shared with the slab below, so they stay
-// open there (a seam) until the slabs are merged; every other vertex follows the modifiability rule
-// inside its slab. Each slab gets B/S faces per batch, so the intermediate meshes together stay within
-// R*F + B plus the uncontractible faces.
-void PipelineRun::runSlabs()
+// Slabs: runs of consecutive blocks, each extracted and decimated on its own by its own integrator.
+// A vertex whose edge is shared with blocks of another slab stays open there (a seam) until the merge
+// tree joins the two; every other vertex follows the modifiability rule inside its slab.
+void PipelineRun::splitSlabs()
 {
-    mSlabs = splitSlabs(mBlocks, kPipelineSlabs);
-    const uint64_t batch = std::max<uint64_t>(1000, mOpt.batchFaces / mSlabs.size());
-    for (uint32_t i = 0; i < mSlabs.size(); ++i) mIntegs.push_back(std::make_unique<Integrator>(mOpt, mRatio, batch, i));
+    mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabCount(mBlocks.size(), mOpt.blocksPerSlab));
+    mResult.report.slabs = mSlabs.size();
+    mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
     // The decimator's least face weight is a fraction of a voxel face, in world units.
-    const double voxelArea = std::pow(std::abs(mInfo.indexToWorld.determinant()), 2.0 / 3.0);
-    for (auto& integ : mIntegs) integ->decimator().setVoxelArea(voxelArea);
+    mVoxelArea = std::pow(std::abs(mInfo.indexToWorld.determinant()), 2.0 / 3.0);
+}
+
+// Ranks agree that each has the same block list before the tree: a rank that could not start
+// (unreadable file there) stops all of them, with its message on rank 0.
+void PipelineRun::agreeAmongRanks(const std::string& error)
+{
+    if (mRanks) mRanks->agree(error, mBlocks.size());
+}
+
+// The merge tree (slabs.h): this process's node of it, made from its slabs and the nodes its child
+// ranks send, then handed to its parent's rank. Returns true where the whole surface is (rank 0).
+bool PipelineRun::runTree()
+{
+    const size_t rank = mRanks ? mRanks->rank() : 0, ranks = mRanks ? mRanks->ranks() : 1;
+    const RankNode node = rankNode(mSlabs.size(), rank, ranks);
     mReleased = true;
-    // Decimation passes poll the same progress object, so a cancel request stops them too.
-    if (mProgress)
-        for (auto& integ : mIntegs)
-            integ->decimator().setInterrupter([this, d = &integ->decimator()] {
-                std::lock_guard<std::mutex> lock(mProgressMutex);
-                return !mProgress->update(double(mDone) / double(mBlocks.size()), d->faceCount());
-            });
-    // A slab's first layer of leaves is also sampled by the slab below, but only its bottom voxel
-    // plane: those leaves are freed like the others, keeping that plane until the slab below is done.
-    std::vector<int32_t> seamZ;
-    for (size_t si = 1; si < mSlabs.size(); ++si) seamZ.push_back(mSlabs[si].zStart);
-    mVol->setSeams(seamZ);
-    // Slabs run in parallel, as many at once as there are threads, and join slab 0's mesh in slab
-    // order as each is done (and all below it have joined); the seam it closes is finalised and
-    // decimated then, while the next slabs run. A slab waiting to join holds its seams open, so no
-    // more slabs start than can run: open seams hold full-resolution faces and grow with the input.
-    const size_t running = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
-    size_t nextSlab = 0;
-    const double slabsStart = mClock.seconds();
-    tbb::parallel_pipeline(
-        running,
-        indices(nextSlab, mSlabs.size()) &
-            tbb::make_filter<size_t, size_t>(tbb::filter_mode::parallel,
-                                             [&](size_t si) {
-                                                 extractSlab(si);
-                                                 // Dead entries are dropped before the queue is copied.
-                                                 mIntegs[si]->decimator().compactQueue();
-                                                 return si;
-                                             }) &
-            tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order, [&](size_t si) {
-                if (si > 0) mIntegs[0]->absorbSlab(*mIntegs[si], mSlabs[si].zStart);
-            }));
-    mResult.report.secondsSlabs = mClock.seconds() - slabsStart;
+    const double start = mClock.seconds();
+    if (!node.found) {  // more ranks than slabs: nothing to do here
+        mResult.report.secondsSlabs = 0.0;
+        return false;
+    }
+    countLeafSamplers(mSlabs[node.l].begin, mSlabs[node.r - 1].end);
+    IntegratorPtr result;
+    try {
+        result = rankSubtree(node.l, node.r, node.a, node.b);
+    } catch (const std::exception& e) {
+        if (rank > 0) mRanks->send(node.parent, {}, e.what());
+        throw;
+    }
+    mResult.report.secondsSlabs = mClock.seconds() - start;
+    if (rank == 0) {
+        mRoot = std::move(result);
+        return true;
+    }
+    mRanks->send(node.parent, rankMessage(result->takePiece()), {});
+    return false;
+}
+
+// Node [l, r) of the tree with ranks [a, b) sharing it (this process is rank a): the left child is
+// made here, the right one by the first rank of its share, received when the left one is done.
+PipelineRun::IntegratorPtr PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
+{
+    if (b - a < 2 || r - l < 2) return localSubtree(l, r);
+    const size_t m = mergeSplit(l, r);
+    const RankShare share = splitRanks(l, r, a, b);
+    IntegratorPtr left;
+    try {
+        left = rankSubtree(l, m, a, share.leftEnd);
+    } catch (...) {
+        // The right child's rank waits until its node is taken: take it (or its error) before leaving.
+        try {
+            mRanks->receive(share.rightBegin);
+        } catch (const std::exception&) {
+        }
+        throw;
+    }
+    join(*left, readRankMessage(mRanks->receive(share.rightBegin)), l, r);
+    return left;
+}
+
+// Node [l, r) in this process: its two halves in parallel (as threads allow), then joined.
+PipelineRun::IntegratorPtr PipelineRun::localSubtree(size_t l, size_t r)
+{
+    if (r - l == 1) return extractSlab(l);
+    const size_t m = mergeSplit(l, r);
+    IntegratorPtr left, right;
+    tbb::parallel_invoke([&] { left = localSubtree(l, m); }, [&] { right = localSubtree(m, r); });
+    join(*left, right->takePiece(), l, r);
+    return left;
+}
+
+// Siblings [l, m) and [m, r) join: the right one's mesh moves into the left one's, and the vertices
+// whose cells all lie in slabs [l, r) become final (the seam between them) and are decimated.
+void PipelineRun::join(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
+{
+    const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
+    left.absorbSlab(std::move(right), [&](EdgeKey k) { return edgeWithin(k, mBlocks, begin, end); });
 }
 
 // One slab's blocks: extracted in parallel, integrated (and decimated every batch) in block order.
-void PipelineRun::extractSlab(size_t si)
+PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
 {
+    auto integ = std::make_unique<Integrator>(mOpt, mRatio, mSlabBatch, uint32_t(si));
+    Decimator& dec = integ->decimator();
+    dec.setVoxelArea(mVoxelArea);
+    // Decimation passes poll the same progress object, so a cancel request stops them too.
+    if (mProgress)
+        dec.setInterrupter([this, &dec] {
+            std::lock_guard<std::mutex> lock(mProgressMutex);
+            return !mProgress->update(double(mDone) / double(mRankBlocks), dec.faceCount());
+        });
     const Slab& slab = mSlabs[si];
-    Integrator& integ = *mIntegs[si];
     size_t next = slab.begin;
     const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
     // Block meshes live in a ring of `tokens` slots rather than travelling as heap items: at most
@@ -253,21 +331,28 @@ void PipelineRun::extractSlab(size_t si)
     // before block i is integrated; and a cancelled pipeline leaves nothing behind (TBB does not
     // destroy items that are in flight when a stage throws).
     std::vector<BlockMesh> slots(tokens);
-    tbb::parallel_pipeline(
-        tokens,
-        indices(next, slab.end) &
-            tbb::make_filter<size_t, size_t>(tbb::filter_mode::parallel,
-                                             [&](size_t i) {
-                                                 meshBlock(si, i, slots[i % tokens]);
-                                                 return i;
-                                             }) &
-            tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order,
-                                           [&](size_t i) { integrateBlock(integ, si, slots[i % tokens]); }));
-    integ.finishSlab();
-    if (si + 1 < mSlabs.size()) mVol->dropSeamPlanes(mSlabs[si + 1].zStart);
+    // Isolated: a thread waiting here runs this slab's blocks only, never another slab's, so no more
+    // slabs are in progress than threads (each holds its open seams and live voxels).
+    tbb::this_task_arena::isolate([&] {
+        tbb::parallel_pipeline(
+            tokens,
+            indices(next, slab.end) &
+                tbb::make_filter<size_t, size_t>(tbb::filter_mode::parallel,
+                                                 [&](size_t i) {
+                                                     meshBlock(si, i, slots[i % tokens]);
+                                                     return i;
+                                                 }) &
+                tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order,
+                                               [&](size_t i) { integrateBlock(*integ, slots[i % tokens]); }));
+    });
+    integ->finishSlab();
+    // Dead entries are dropped before the queue is copied by a merge.
+    dec.compactQueue();
+    return integ;
 }
 
-// Marching Cubes on block i of slab si. Thread-safe.
+// Marching Cubes on block i of slab si. Thread-safe. A vertex whose first cell (in block order) lies
+// in an earlier slab stays open: that slab holds the other half of its faces.
 void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
 {
     BlockSamples s;
@@ -277,30 +362,94 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     m.minValue = *mm.first;
     m.maxValue = *mm.second;
     extractBlock(s, mCls, mInfo.indexToWorld, mFlip, m);
-    const int32_t seamZ = mSlabs[si].zStart;
-    if (si > 0 && mBlocks[i][2] == seamZ)
-        for (size_t v = 0; v < m.keys.size(); ++v) {
-            const EdgeCoord e = decodeEdgeKey(m.keys[v]);
-            if (e.z == seamZ && e.axis != 2) m.finalAfterBlock[v] = 0;  // on the seam: open until the slabs join
-        }
+    const BlockOrigin& first = mBlocks[mSlabs[si].begin];
+    for (size_t v = 0; v < m.keys.size(); ++v)
+        if (m.finalAfterBlock[v] && blockBefore(edgeBlocks(m.keys[v]).first, first)) m.finalAfterBlock[v] = 0;
 }
 
-// The in-order stage: the block's mesh joins its slab, its voxels are freed, progress is counted.
-void PipelineRun::integrateBlock(Integrator& integ, size_t si, const BlockMesh& m)
+// The in-order stage: the block's mesh joins its slab, leaves no block still needs are freed,
+// progress is counted.
+void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
 {
     integ.add(m);
-    const BlockOrigin& origin = mBlocks[m.blockIndex];
-    if (si > 0 && origin[2] == mSlabs[si].zStart) mVol->releaseSeamLeaf(origin);
-    else mVol->releaseLeaf(origin);
+    releaseSampledLeaves(m.blockIndex);
     std::lock_guard<std::mutex> lock(mProgressMutex);
     mSampled = {std::min(mSampled[0], m.minValue), std::max(mSampled[1], m.maxValue)};
     ++mDone;
     if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
     // Released leaves are small heap objects: give the pages they emptied back.
     if (mDone % kMallocTrimEveryBlocks == 0) malloc_trim(0);
-    if (mProgress && (mDone % kProgressEveryBlocks == 0 || mDone == mBlocks.size()) &&
-        !mProgress->update(double(mDone) / double(mBlocks.size()), integ.decimator().faceCount()))
+    if (mProgress && (mDone % kProgressEveryBlocks == 0 || mDone == mRankBlocks) &&
+        !mProgress->update(double(mDone) / double(mRankBlocks), integ.decimator().faceCount()))
         throw Cancelled("cancelled");
+}
+
+// Index of the block at origin `o` in the list, or the list's size if it is not there.
+size_t PipelineRun::blockIndex(const BlockOrigin& o) const
+{
+    const auto it = std::lower_bound(mBlocks.begin(), mBlocks.end(), o, blockBefore);
+    return it != mBlocks.end() && *it == o ? size_t(it - mBlocks.begin()) : mBlocks.size();
+}
+
+// Block i samples the leaves at its origin + 8 * {0,1}^3 (its +x/+y/+z corner layers).
+template <typename F>
+static void forSampledLeaves(const BlockOrigin& o, F&& f)
+{
+    for (int d = 0; d < 8; ++d) f(BlockOrigin{o[0] + 8 * (d & 1), o[1] + 8 * ((d >> 1) & 1), o[2] + 8 * ((d >> 2) & 1)});
+}
+
+void PipelineRun::countLeafSamplers(size_t begin, size_t end)
+{
+    mRankBlocks = end - begin;
+    mLeafSamplers.reset(new std::atomic<uint8_t>[mBlocks.size()]);
+    for (size_t j = 0; j < mBlocks.size(); ++j) mLeafSamplers[j].store(0, std::memory_order_relaxed);
+    tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i)
+            forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
+                const size_t j = blockIndex(leaf);
+                if (j < mBlocks.size()) mLeafSamplers[j].fetch_add(1, std::memory_order_relaxed);
+            });
+    });
+}
+
+// Once the last block sampling a leaf is integrated (in whichever slab), the leaf is freed.
+void PipelineRun::releaseSampledLeaves(size_t i)
+{
+    forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
+        const size_t j = blockIndex(leaf);
+        if (j < mBlocks.size() && mLeafSamplers[j].fetch_sub(1, std::memory_order_acq_rel) == 1) mVol->releaseLeaf(leaf);
+    });
+}
+
+// What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
+std::vector<char> PipelineRun::rankMessage(SlabPiece&& piece) const
+{
+    std::vector<double> stats = mRankSeconds, rss = mRankPeakRss;
+    stats.insert(stats.begin(), mClock.seconds());
+    rss.insert(rss.begin(), peakRssMb());
+    std::vector<char> out;
+    const uint64_t n = stats.size();
+    out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
+    for (const std::vector<double>* v : {&stats, &rss})
+        out.insert(out.end(), reinterpret_cast<const char*>(v->data()), reinterpret_cast<const char*>(v->data() + n));
+    writePieceBytes(std::move(piece), out);
+    return out;
+}
+
+SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
+{
+    uint64_t n = 0;
+    if (bytes.size() < sizeof n) throw std::runtime_error("merge tree message: bytes end early");
+    std::memcpy(&n, bytes.data(), sizeof n);
+    const size_t head = sizeof n + 2 * n * sizeof(double);
+    if (n > bytes.size() || bytes.size() < head) throw std::runtime_error("merge tree message: bytes end early");
+    const double* stats = reinterpret_cast<const double*>(bytes.data() + sizeof n);
+    std::vector<double> seconds(n), rss(n);
+    std::memcpy(seconds.data(), stats, n * sizeof(double));
+    std::memcpy(rss.data(), stats + n, n * sizeof(double));
+    mRankSeconds.insert(mRankSeconds.end(), seconds.begin(), seconds.end());
+    mRankPeakRss.insert(mRankPeakRss.end(), rss.begin(), rss.end());
+    return readPieceBytes(bytes.data() + head, bytes.size() - head);
 }
 
 // Every slab has joined slab 0: the final pass runs on the whole, and the report is completed.
@@ -308,17 +457,13 @@ Result PipelineRun::finalPass()
 {
     Report& rep = mResult.report;
     const double finalStart = mClock.seconds();
-    uint64_t facesGenerated = 0, intermediate = 0;
-    for (const auto& integ : mIntegs) {
-        facesGenerated += integ->facesGenerated();
-        const SlabStats& st = integ->stats();
-        rep.decimations += st.decimations;
-        intermediate += st.maxIntermediateFaces;
-        rep.maxUncontractibleFaces += st.maxUncontractibleFaces;
-        rep.trace.insert(rep.trace.end(), st.trace.begin(), st.trace.end());
-    }
-    Integrator& whole = *mIntegs[0];
-    rep.maxIntermediateFaces = std::max(intermediate, uint64_t(whole.decimator().faceCount()));
+    Integrator& whole = *mRoot;
+    const uint64_t facesGenerated = whole.facesGenerated();
+    const SlabStats slabs = whole.stats();
+    rep.decimations = slabs.decimations;
+    rep.maxUncontractibleFaces = slabs.maxUncontractibleFaces;
+    rep.trace = slabs.trace;
+    rep.maxIntermediateFaces = std::max(slabs.maxIntermediateFaces, uint64_t(whole.decimator().faceCount()));
 
     if (mOpt.targetFaces == 0) rep.facesFull = facesGenerated;
     if (rep.facesFull == 0) throw noSurface();
@@ -327,18 +472,33 @@ Result PipelineRun::finalPass()
                                            : uint64_t(std::llround(mRatio * double(rep.facesFull)));
     uint64_t unfinalized = 0;
     const size_t seamVertices = whole.decimator().openVertices();
-    const size_t traced = whole.stats().trace.size();
+    const size_t traced = slabs.trace.size();
     whole.finish(rep.facesTarget, facesGenerated, unfinalized);
     rep.unfinalizedAtEnd = unfinalized - seamVertices;
-    rep.trace.insert(rep.trace.end(), whole.stats().trace.begin() + traced, whole.stats().trace.end());
-    rep.decimations += whole.stats().trace.size() - traced;
+    const SlabStats all = whole.stats();
+    rep.trace.insert(rep.trace.end(), all.trace.begin() + traced, all.trace.end());
+    rep.decimations += all.trace.size() - traced;
     rep.componentsDropped = whole.componentsDropped();
     rep.secondsFinal = mClock.seconds() - finalStart;
     mResult.mesh = whole.decimator().mesh();
     rep.facesOut = mResult.mesh.triangles.size();
     rep.vertsOut = mResult.mesh.points.size();
+    return rankReport();
+}
+
+// The report's run-wide numbers; with ranks, each rank's seconds and peak memory (rank 0 first).
+Result PipelineRun::rankReport()
+{
+    Report& rep = mResult.report;
     rep.seconds = mClock.seconds();
     rep.peakRssMb = peakRssMb();
+    rep.ranks = mRanks ? mRanks->ranks() : 1;
+    if (mRanks) {
+        rep.rankSeconds = mRankSeconds;
+        rep.rankPeakRssMb = mRankPeakRss;
+        rep.rankSeconds.insert(rep.rankSeconds.begin(), rep.seconds);
+        rep.rankPeakRssMb.insert(rep.rankPeakRssMb.begin(), rep.peakRssMb);
+    }
     return std::move(mResult);
 }
 
@@ -351,29 +511,38 @@ EmptySurfaceError PipelineRun::noSurface() const
     return EmptySurfaceError(s.str());
 }
 
-Result runPipeline(const VolumeOpener& open, const std::string& path, const Options& opt, Progress* progress)
+Result runPipeline(const VolumeOpener& open, const std::string& path, const Options& opt, Progress* progress,
+                   RankChannel* ranks)
 {
-    checkOptions(opt);
-    PipelineRun run(path, opt, progress);
-    run.openVolume(open);
-    run.chooseIso();
-    run.listBlocks();
-    run.setTarget(open);
-    run.runSlabs();
+    PipelineRun run(path, opt, progress, ranks);
+    try {
+        checkOptions(opt);
+        run.openVolume(open);
+        run.chooseIso();
+        run.listBlocks();
+        run.setTarget(open);
+        run.splitSlabs();
+    } catch (const std::exception& e) {
+        run.agreeAmongRanks(e.what());
+        throw;
+    }
+    run.agreeAmongRanks({});
+    if (!run.runTree()) return run.rankReport();
     return run.finalPass();
 }
 
 } // namespace
 
-Result simplifyVolume(const VolumeOpener& open, const std::string& name, const Options& opt, Progress* progress)
+Result simplifyVolume(const VolumeOpener& open, const std::string& name, const Options& opt, Progress* progress,
+                      RankChannel* ranks)
 {
     // Every input error names the input, whichever stage found it.
     try {
         // A thread count applies to this run only: an arena of its own, not a process-wide limit
         // that would hold every other TBB user of a host (Blender, Houdini, Python) while it runs.
-        if (opt.threads <= 0) return runPipeline(open, name, opt, progress);
+        if (opt.threads <= 0) return runPipeline(open, name, opt, progress, ranks);
         tbb::task_arena arena(opt.threads);
-        return arena.execute([&] { return runPipeline(open, name, opt, progress); });
+        return arena.execute([&] { return runPipeline(open, name, opt, progress, ranks); });
     } catch (const InputError& e) {
         const std::string what = e.what();
         if (what.compare(0, name.size() + 1, name + ":") == 0) throw;

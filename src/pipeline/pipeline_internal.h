@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace vdb_isosimp {
 
@@ -14,6 +15,27 @@ namespace vdb_isosimp {
 // with. simplifyFile(path) is simplifyVolume([&] { return Volume::open(path, o.gridName); }, path, ...);
 // simplifyGrid() passes Volume::fromGrid(), which reads the caller's grid in place.
 using VolumeOpener = std::function<std::unique_ptr<Volume>()>;
-Result simplifyVolume(const VolumeOpener& open, const std::string& name, const Options& options, Progress* progress);
+
+// The processes of a distributed run (mpi/): each opens the volume itself, runs its part of the
+// merge tree (slabs.h: rankNode) and sends the result to the rank of the parent node.
+class RankChannel {
+public:
+    virtual ~RankChannel() = default;
+    virtual size_t rank() const = 0;
+    virtual size_t ranks() const = 0;
+    // Called by every rank once its block list is known (`error` empty) or its start failed (the
+    // message): returns when all agree on `blocks`; otherwise throws on every rank, on rank 0 the
+    // first failed rank's message.
+    virtual void agree(const std::string& error, uint64_t blocks) = 0;
+    // Hands a finished node to rank `to` (or, `error` not empty, the error that stopped it).
+    virtual void send(size_t to, const std::vector<char>& bytes, const std::string& error) = 0;
+    // The node rank `from` sends; throws the error it sent instead.
+    virtual std::vector<char> receive(size_t from) = 0;
+};
+
+// `ranks`: this process's share of a distributed run, or null for all of it. With ranks, only rank 0's
+// Result holds the mesh; the others return their own report (their seconds and peak memory).
+Result simplifyVolume(const VolumeOpener& open, const std::string& name, const Options& options, Progress* progress,
+                      RankChannel* ranks = nullptr);
 
 } // namespace vdb_isosimp

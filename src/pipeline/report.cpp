@@ -5,9 +5,10 @@ namespace vdb_isosimp {
 std::vector<ReportField> reportFields(const Report& r, const Options& o)
 {
     using K = ReportField::Kind;
-    const auto text = [](const char* name, const std::string& v) { return ReportField{name, K::Text, v, 0, 0.0}; };
-    const auto integer = [](const char* name, uint64_t v) { return ReportField{name, K::Integer, {}, v, 0.0}; };
-    const auto real = [](const char* name, double v) { return ReportField{name, K::Real, {}, 0, v}; };
+    const auto text = [](const char* name, const std::string& v) { return ReportField{name, K::Text, v, 0, 0.0, {}}; };
+    const auto integer = [](const char* name, uint64_t v) { return ReportField{name, K::Integer, {}, v, 0.0, {}}; };
+    const auto real = [](const char* name, double v) { return ReportField{name, K::Real, {}, 0, v, {}}; };
+    const auto reals = [](const char* name, const std::vector<double>& v) { return ReportField{name, K::Reals, {}, 0, 0.0, v}; };
     return {text("input", r.file),
             text("grid", r.grid),
             text("value_type", r.valueType),
@@ -16,6 +17,8 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("ratio", r.ratio),
             integer("batch", o.batchFaces),
             integer("blocks", r.blocks),
+            integer("blocks_per_slab", o.blocksPerSlab),
+            integer("slabs", r.slabs),
             integer("faces_full", r.facesFull),
             integer("faces_target", r.facesTarget),
             integer("faces_out", r.facesOut),
@@ -27,7 +30,10 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds", r.seconds),
             real("seconds_slabs", r.secondsSlabs),
             real("seconds_final", r.secondsFinal),
-            real("peak_rss_mb", r.peakRssMb)};
+            real("peak_rss_mb", r.peakRssMb),
+            integer("ranks", r.ranks),
+            reals("rank_seconds", r.rankSeconds),
+            reals("rank_peak_rss_mb", r.rankPeakRssMb)};
 }
 
 } // namespace vdb_isosimp

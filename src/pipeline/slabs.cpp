@@ -1,21 +1,71 @@
 #include "pipeline/slabs.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace vdb_isosimp {
+
+size_t slabCount(size_t blocks, uint64_t blocksPerSlab)
+{
+    const uint64_t per = std::max<uint64_t>(1, blocksPerSlab);
+    return size_t(std::clamp<uint64_t>((blocks + per - 1) / per, 1, kMaxSlabs));
+}
 
 std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count)
 {
     std::vector<Slab> slabs;
-    size_t begin = 0;
-    for (size_t s = 0; s < count && begin < blocks.size(); ++s) {
-        size_t end = s + 1 == count ? blocks.size() : std::max(begin + 1, blocks.size() * (s + 1) / count);
-        while (end < blocks.size() && blocks[end][2] == blocks[end - 1][2]) ++end;
-        slabs.push_back({begin, end, blocks[begin][2]});
-        begin = end;
-    }
-    if (begin < blocks.size()) slabs.back().end = blocks.size();
+    const size_t n = std::min(count, blocks.size());
+    for (size_t s = 0; s < n; ++s) slabs.push_back({blocks.size() * s / n, blocks.size() * (s + 1) / n});
     return slabs;
+}
+
+RankShare splitRanks(size_t l, size_t r, size_t a, size_t b)
+{
+    const size_t m = mergeSplit(l, r);
+    const size_t ranks = b - a;
+    if (ranks < 2) return {a, b, a, b};
+    const double share = double(ranks) * double(m - l) / double(r - l);
+    const size_t left = std::clamp<size_t>(size_t(std::llround(share)), 1, ranks - 1);
+    return {a, a + left, a + left, b};
+}
+
+RankNode rankNode(size_t slabs, size_t rank, size_t ranks)
+{
+    size_t l = 0, r = slabs, a = 0, b = ranks, parent = 0;
+    while (true) {
+        if (a == rank) return {true, l, r, a, b, parent};
+        if (r - l < 2 || b - a < 2) return {};  // the node's slab went to rank a; nothing left here
+        const size_t m = mergeSplit(l, r);
+        const RankShare s = splitRanks(l, r, a, b);
+        if (rank < s.rightBegin) {
+            r = m;
+            b = s.leftEnd;
+        } else {
+            parent = a;
+            l = m;
+            a = s.rightBegin;
+        }
+    }
+}
+
+EdgeBlocks edgeBlocks(EdgeKey key)
+{
+    // The cells around an edge from voxel v along axis a are v - {0,1} e_b - {0,1} e_c: the one at v
+    // comes last in z/y/x order, the one at v - e_b - e_c first (modifiability.h).
+    const EdgeCoord e = decodeEdgeKey(key);
+    const int32_t v[3] = {e.x, e.y, e.z};
+    int32_t lo[3] = {e.x, e.y, e.z};
+    for (int k = 0; k < 3; ++k)
+        if (k != e.axis) lo[k] -= 1;
+    auto block = [](int32_t c) { return c & ~int32_t(7); };  // rounds down, also below zero
+    return {{block(lo[0]), block(lo[1]), block(lo[2])}, {block(v[0]), block(v[1]), block(v[2])}};
+}
+
+bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end)
+{
+    const EdgeBlocks eb = edgeBlocks(key);
+    if (begin > 0 && blockBefore(eb.first, blocks[begin])) return false;
+    return end >= blocks.size() || blockBefore(eb.last, blocks[end]);
 }
 
 } // namespace vdb_isosimp

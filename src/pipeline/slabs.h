@@ -1,7 +1,9 @@
-// Slabs: runs of whole block layers (equal z), each extracted and decimated on its own by its own
-// integrator and joined in order by the pipeline.
+// Slabs and the merge tree: how a run's blocks divide into independent pieces of work, how the
+// pieces join, and which process (rank) does which part. Everything here depends on the block list
+// alone, never on threads or ranks, so the output does not either.
 #pragma once
 #include "vdb/block_order.h"
+#include "core/edge_key.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -9,19 +11,66 @@
 
 namespace vdb_isosimp {
 
-// How many slabs a volume is cut into: a constant, so that the output never depends on the number of
-// threads; the memory estimate counts their open seams.
-constexpr size_t kPipelineSlabs = 8;
+// Blocks per slab when the options do not say: about 200k full-resolution faces on CT-like data, so
+// a 448^3 volume gives about 90 slabs and a slab's batches stay a small part of it.
+constexpr uint64_t kDefaultBlocksPerSlab = 2048;
+// More slabs only add seams: a few hundred keep several hundred workers busy.
+constexpr size_t kMaxSlabs = 256;
 
-// A run of whole block layers (equal z), processed by its own integrator.
+// A run of consecutive blocks of the z/y/x-sorted list, extracted and decimated by its own integrator.
 struct Slab {
     size_t begin = 0, end = 0;
-    int32_t zStart = 0;
 };
 
-// Splits the z/y/x-sorted blocks into at most `count` slabs of about equal block counts, cutting only
-// between block layers. The split depends on the volume alone, never on the thread count, so the
-// output does not either.
+// How many slabs a list of `blocks` blocks is cut into: one per `blocksPerSlab` (rounded up), at
+// most kMaxSlabs.
+size_t slabCount(size_t blocks, uint64_t blocksPerSlab);
+
+// Cuts the sorted blocks into `count` slabs of equal block counts (within one); a cut may fall
+// anywhere, also inside a layer of blocks. Fewer slabs than `count` when there are fewer blocks.
 std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count);
+
+// The merge tree over slabs [0, S): node [l, r) with r - l > 1 joins its children [l, m) and [m, r)
+// at m = mergeSplit(l, r), the left half the larger. Its depth is ceil(log2 S).
+inline size_t mergeSplit(size_t l, size_t r) { return l + (r - l + 1) / 2; }
+
+// Which ranks work on node [l, r) of the tree, given ranks [a, b) for it: the children get shares
+// of the ranks in proportion to their slabs (each at least one while there are two or more ranks).
+// A node's result is made by the first rank of its share; a right child's first rank sends it there.
+struct RankShare {
+    size_t leftBegin, leftEnd, rightBegin, rightEnd;
+};
+RankShare splitRanks(size_t l, size_t r, size_t a, size_t b);
+
+// The node of the tree rank `rank` of `ranks` makes and hands on (sends to its parent's rank, or
+// writes the output if it is the root): [l, r) with that rank first in its share, and the share
+// itself. `found` is false for a rank left without slabs (more ranks than slabs).
+struct RankNode {
+    bool found = false;
+    size_t l = 0, r = 0, a = 0, b = 0;
+    size_t parent = 0;  // the rank that receives it (for rank 0: none, it makes the root)
+};
+RankNode rankNode(size_t slabs, size_t rank, size_t ranks);
+
+// Where a vertex's edge lies in the block order: the vertex is made by the cells around its edge, and
+// the first and last of those in z/y/x order sit in the blocks `first` and `last` (block origins).
+// A vertex is final inside a slab when both lie in it, and at a merge node when both lie in the
+// node's slabs; otherwise it stays open, a seam vertex, until they do.
+struct EdgeBlocks {
+    BlockOrigin first, last;
+};
+EdgeBlocks edgeBlocks(EdgeKey key);
+
+// z/y/x order of block origins (the order of the block list).
+inline bool blockBefore(const BlockOrigin& a, const BlockOrigin& b)
+{
+    if (a[2] != b[2]) return a[2] < b[2];
+    if (a[1] != b[1]) return a[1] < b[1];
+    return a[0] < b[0];
+}
+
+// Whether every cell around the edge lies in blocks [begin, end) of the list (end == size: no upper
+// limit), i.e. the vertex is final once those blocks have joined.
+bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end);
 
 } // namespace vdb_isosimp

@@ -18,7 +18,6 @@
 #include <cstdlib>
 #include <sys/mman.h>
 #include <fstream>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -119,16 +118,11 @@ public:
     // The first read of a leaf's voxels happens here, one thread per leaf (a lock stripe by origin),
     // for the up to 8 leaves the block's 9^3 samples touch: afterwards they are in memory and the
     // accessor's reads load nothing. A leaf that failed before is reported again.
-    // The leaves above a slab's top blocks belong to the next slab, which frees them as it goes
-    // (releaseSeamLeaf, under mSeamMutex): those are looked up and loaded under the same lock.
     void loadLeaves(const std::array<int32_t, 3>& origin) const
     {
         using LeafT = typename GridT::TreeType::LeafNodeType;
-        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + 8) != mSeams.end();
         for (int d = 0; d < 8; ++d) {
             const openvdb::Coord c(origin[0] + 8 * (d & 1), origin[1] + 8 * ((d >> 1) & 1), origin[2] + 8 * ((d >> 2) & 1));
-            std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
-            if (seamTop && (d >> 2)) seamLock.lock();
             LeafT* leaf = mGrid->tree().probeLeaf(c);
             if (!leaf || !leaf->buffer().isOutOfCore()) {
                 if (mDamaged.load(std::memory_order_acquire)) throwDamaged();
@@ -160,20 +154,14 @@ public:
         typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
         out.origin = origin;
         constexpr int N = BlockSamples::N;
-        // The top plane of a slab's last block layer lies in the next slab's first leaf layer, whose
-        // leaves may be gone already with only their bottom plane kept (releaseSeamLeaf).
-        const bool seamTop = std::find(mSeams.begin(), mSeams.end(), origin[2] + N - 1) != mSeams.end();
-        std::unique_lock<std::mutex> seamLock(mSeamMutex, std::defer_lock);
         openvdb::Coord ijk;
         for (int z = 0; z < N; ++z) {
             ijk.z() = origin[2] + z;
-            const bool fromSeam = seamTop && z == N - 1;
-            if (fromSeam) seamLock.lock();  // no seam leaf is freed while its plane is read here
             for (int y = 0; y < N; ++y) {
                 ijk.y() = origin[1] + y;
                 for (int x = 0; x < N; ++x) {
                     ijk.x() = origin[0] + x;
-                    const double v = double(fromSeam ? seamValue(acc, ijk) : acc.getValue(ijk));
+                    const double v = double(acc.getValue(ijk));
                     if (!std::isfinite(v)) {
                         std::ostringstream s;
                         s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << v
@@ -221,37 +209,6 @@ public:
         for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
         for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
         ::malloc_trim(0);
-    }
-
-    // A voxel of a seam plane: from the kept bottom plane when its leaf is gone, else from the tree.
-    // Called with mSeamMutex held.
-    ValueT seamValue(typename GridT::ConstAccessor& acc, const openvdb::Coord& ijk) const
-    {
-        const openvdb::Coord leaf = ijk & ~openvdb::Int32(7);
-        const auto it = mSeamPlanes.find(std::make_tuple(leaf.x(), leaf.y(), leaf.z()));
-        if (it == mSeamPlanes.end()) return acc.getValue(ijk);
-        return it->second[size_t((ijk.y() - leaf.y()) * 8 + (ijk.x() - leaf.x()))];
-    }
-
-    void setSeams(const std::vector<int32_t>& z) override { mSeams = z; }
-
-    void releaseSeamLeaf(const std::array<int32_t, 3>& o) override
-    {
-        if (!mFromFile) return;
-        std::lock_guard<std::mutex> lock(mSeamMutex);
-        if (const auto* leaf = mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]))) {
-            std::array<ValueT, 64>& plane = mSeamPlanes[std::make_tuple(o[0], o[1], o[2])];
-            for (int y = 0; y < 8; ++y)
-                for (int x = 0; x < 8; ++x) plane[size_t(y * 8 + x)] = leaf->getValue(openvdb::Coord(o[0] + x, o[1] + y, o[2]));
-        }
-        releaseLeaf(o);
-    }
-
-    void dropSeamPlanes(int32_t z) override
-    {
-        std::lock_guard<std::mutex> lock(mSeamMutex);
-        for (auto it = mSeamPlanes.begin(); it != mSeamPlanes.end();)
-            it = std::get<2>(it->first) == z ? mSeamPlanes.erase(it) : std::next(it);
     }
 
     void releaseLeaf(const std::array<int32_t, 3>& o) override
@@ -329,11 +286,6 @@ private:
     mutable std::mutex mDamageMutex;
     mutable std::string mDamage;
     std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
-    // Seams: z of each slab's first leaf layer (set before extraction, read-only during it), and the
-    // bottom planes of released seam leaves, by leaf origin.
-    std::vector<int32_t> mSeams;
-    mutable std::mutex mSeamMutex;
-    std::map<std::tuple<int32_t, int32_t, int32_t>, std::array<ValueT, 64>> mSeamPlanes;
 };
 
 Affine affineOf(const openvdb::math::Transform& xform)

@@ -52,20 +52,11 @@ public:
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
     // when the voxels cannot be read from the file (delayed loading).
     virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
-    // Frees the voxel buffer of the leaf whose origin is `blockOrigin`, if any. Leaf L is last sampled
-    // by block L itself (blocks after it in z/y/x order only sample higher voxels), so once block L is
-    // integrated its voxels are dead: live voxel data stays about one layer of blocks. Call from the
-    // in-order stage only; no block after L reads L, so concurrent extraction is unaffected.
+    // Frees the leaf whose origin is `blockOrigin`, if any. A leaf is sampled by its own block and the
+    // up to 7 blocks below, behind and left of it (their +x/+y/+z corner layers): the caller frees it once
+    // all of those it extracts have been integrated (pipeline.cpp counts them), so live voxel data stays
+    // about one layer of blocks per slab in progress. Thread-safe; nothing may sample the leaf afterwards.
     virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
-    // Seams between slabs processed in parallel (pipeline.cpp): a slab's first leaf layer (at one of
-    // the z given to setSeams) is also sampled by the slab below, but only its bottom voxel plane.
-    // releaseSeamLeaf keeps that plane (64 values) and frees the leaf as releaseLeaf does, so no slab
-    // holds a whole layer of voxels for its neighbour; samples of that plane come from the kept copy.
-    // dropSeamPlanes(z) frees the planes at z once the slab below is done. Same calling rules as
-    // releaseLeaf; setSeams before any sampling.
-    virtual void setSeams(const std::vector<int32_t>& z) = 0;
-    virtual void releaseSeamLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
-    virtual void dropSeamPlanes(int32_t z) = 0;
     // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
     // a few MB (more often, the other threads' TLB flushes cost time).
     static constexpr size_t kTrimEveryBlocks = 16;
