@@ -5,6 +5,7 @@
 #include "json_text.h"
 #include "vdb_isosimp/errors.h"
 #include "vdb_isosimp/mesh_writer.h"
+#include "vdb_isosimp/mpi_run.h"
 #include "vdb_isosimp/temporary_file.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
@@ -12,6 +13,7 @@
 
 #include <atomic>
 #include <malloc.h>
+#include <memory>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -246,6 +248,15 @@ int main(int argc, char** argv)
     // largest block freed (up to 64 MiB per arena), and block meshes, voxel leaves and merged slab
     // arrays are freed all run long: that slack would be a sixth of the peak (docs/perf.md).
     mallopt(M_TRIM_THRESHOLD, 8 << 20);
+    // Under mpirun every rank runs this program: each makes its part of the merge tree, rank 0 writes.
+    std::unique_ptr<MpiRun> mpi;
+    if (startedByMpirun()) try {
+        mpi = std::make_unique<MpiRun>(argc, argv);
+    } catch (const std::exception& e) {
+        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        return 1;
+    }
+    const bool writer = !mpi || mpi->rank() == 0;
     CLI::App app{"vdb_isosimp: extract the iso-surface of an OpenVDB grid with Marching Cubes and simplify it\n"
                  "with quadric edge collapse while extracting (the full-resolution surface is never stored).\n"
                  "Output: world space, triangles counter-clockwise seen from outside; the format follows the\n"
@@ -299,6 +310,10 @@ int main(int argc, char** argv)
                    "machine's physical memory, or the container's limit when lower")
         ->default_val(maxMemory);
 
+    if (!writer) {  // rank 0 alone speaks (usage errors, help, the run's errors)
+        std::cerr.setstate(std::ios::failbit);
+        std::cout.setstate(std::ios::failbit);
+    }
     if (const int code = parseCommandLine(app, argc, argv, "vdb_isosimp"); code >= 0) return code;
     if (*isoOpt) opt.iso = iso;
     if (*isoOpt && !std::isfinite(iso)) {
@@ -328,16 +343,17 @@ int main(int argc, char** argv)
     TerminalProgress bar;
     try {
         formatForPath(output, ascii);  // an unsupported extension fails before the long run
-        probeWritable(output);
+        if (writer) probeWritable(output);
         std::vector<std::string> temporaries{temporaryPathFor(output)};
         for (const std::string* p : {&reportPath, &tracePath})
             if (!p->empty()) temporaries.push_back(temporaryPathFor(*p));
         Watchdog watchdog(temporaries);
-        const bool showBar = !quiet && ::isatty(STDERR_FILENO);
+        const bool showBar = writer && !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
-        Result res = simplifyFile(input, opt, &progress);
+        Result res = mpi ? mpi->simplifyFile(input, opt, &progress) : simplifyFile(input, opt, &progress);
         bar.clear();
         if (gSignal.load()) throw Cancelled("interrupted");
+        if (!writer) return 0;
         const Report& r = res.report;
         if (r.isoDefaulted && !quiet)
             std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",

@@ -4,7 +4,7 @@
 #     the evaluation library (eval/) include no header of the library's internals (src/): only the
 #     public headers (include/vdb_isosimp/) and their own;
 #  2. inside the library, includes flow one way between the layers, include/ <- core <- vdb <- io <-
-#     pipeline, and no module (a .h/.cpp pair) reaches itself through its includes;
+#     pipeline <- mpi, and no module (a .h/.cpp pair) reaches itself through its includes;
 #  3. the library's messages name no command-line flag (a library caller has none; the programs add them).
 # Prints each violation as FILE: what, and exits 1 if there is one.
 set -euo pipefail
@@ -13,7 +13,7 @@ exec /usr/bin/python3 - <<'PY'
 import os, re, sys
 
 INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.M)
-LAYERS = ["core", "vdb", "io", "pipeline"]  # each may include the ones before it
+LAYERS = ["core", "vdb", "io", "pipeline", "mpi"]  # each may include the ones before it
 problems = []
 
 def includes(path):

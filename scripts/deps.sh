@@ -7,7 +7,7 @@ PKGS=(build-essential cmake pkg-config
       libgtest-dev libgmock-dev zlib1g-dev libdcmtk-dev libtiff-dev time
       libmeshoptimizer-dev python3-vtk9
       libtinygltf-dev pybind11-dev libboost-python-dev python3-dev python3-numpy python3-openvdb blender
-      clang libclang-rt-14-dev)
+      clang libclang-rt-14-dev openmpi-bin libopenmpi-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

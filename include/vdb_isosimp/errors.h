@@ -16,5 +16,8 @@ struct OutputError : std::runtime_error { using std::runtime_error::runtime_erro
 struct EmptySurfaceError : std::runtime_error { using std::runtime_error::runtime_error; };
 // The caller's progress callback asked to stop.
 struct Cancelled : std::runtime_error { using std::runtime_error::runtime_error; };
+// A distributed run stopped because another rank failed: rank 0 reports that rank's error, the others
+// end quietly.
+struct PeerFailed : std::runtime_error { using std::runtime_error::runtime_error; };
 
 } // namespace vdb_isosimp

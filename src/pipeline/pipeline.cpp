@@ -18,6 +18,7 @@
 #include "vdb/volume_reader.h"
 #include "vdb_isosimp/errors.h"
 
+#include <tbb/info.h>
 #include <tbb/task_arena.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
@@ -541,7 +542,9 @@ Result simplifyVolume(const VolumeOpener& open, const std::string& name, const O
         // A thread count applies to this run only: an arena of its own, not a process-wide limit
         // that would hold every other TBB user of a host (Blender, Houdini, Python) while it runs.
         if (opt.threads <= 0) return runPipeline(open, name, opt, progress, ranks);
-        tbb::task_arena arena(opt.threads);
+        // No more than the cores this process may use (mpirun binds each rank to its own): TBB would
+        // warn and run with fewer anyway.
+        tbb::task_arena arena(std::min(opt.threads, tbb::info::default_concurrency()));
         return arena.execute([&] { return runPipeline(open, name, opt, progress, ranks); });
     } catch (const InputError& e) {
         const std::string what = e.what();

@@ -1,0 +1,164 @@
+// The merge tree's messages between MPI ranks (pipeline_internal.h: RankChannel). A message is a header
+// (ok or failed, payload bytes) and the payload: a node's bytes or the error that stopped it. Every
+// message a rank waits for is sent, failed or not, so an error anywhere ends every rank.
+#include "vdb_isosimp/mpi_run.h"
+
+#include "pipeline/pipeline_internal.h"
+#include "vdb_isosimp/errors.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdlib>
+#include <stdexcept>
+#include <vector>
+
+#ifdef VDB_ISOSIMP_HAVE_MPI
+#include <mpi.h>
+#endif
+
+namespace vdb_isosimp {
+
+bool startedByMpirun()
+{
+    return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMIX_RANK") != nullptr;
+}
+
+#ifdef VDB_ISOSIMP_HAVE_MPI
+
+namespace {
+
+constexpr int kNodeTag = 16, kAgreeTag = 17;
+// MPI counts are ints: payloads go in parts of at most 1 GiB.
+constexpr uint64_t kPart = uint64_t(1) << 30;
+
+void check(int code, const char* what)
+{
+    if (code != MPI_SUCCESS) throw std::runtime_error(std::string("MPI: ") + what + " failed");
+}
+
+void sendPayload(const char* data, uint64_t size, int to, int tag)
+{
+    const uint64_t header = size;
+    check(MPI_Send(&header, 1, MPI_UINT64_T, to, tag, MPI_COMM_WORLD), "send");
+    for (uint64_t done = 0; done < size; done += kPart)
+        check(MPI_Send(data + done, int(std::min(kPart, size - done)), MPI_BYTE, to, tag, MPI_COMM_WORLD), "send");
+}
+
+std::vector<char> receivePayload(int from, int tag)
+{
+    uint64_t size = 0;
+    check(MPI_Recv(&size, 1, MPI_UINT64_T, from, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE), "receive");
+    std::vector<char> data(size);
+    for (uint64_t done = 0; done < size; done += kPart)
+        check(MPI_Recv(data.data() + done, int(std::min(kPart, size - done)), MPI_BYTE, from, tag, MPI_COMM_WORLD,
+                       MPI_STATUS_IGNORE),
+              "receive");
+    return data;
+}
+
+class MpiChannel final : public RankChannel {
+public:
+    MpiChannel(int rank, int ranks) : mRank(rank), mRanks(ranks) {}
+    size_t rank() const override { return size_t(mRank); }
+    size_t ranks() const override { return size_t(mRanks); }
+
+    void agree(const std::string& error, uint64_t blocks) override
+    {
+        const uint64_t mine[2] = {error.empty() ? 0u : 1u, blocks};
+        std::vector<uint64_t> all(2 * size_t(mRanks));
+        check(MPI_Allgather(mine, 2, MPI_UINT64_T, all.data(), 2, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
+        int failed = -1;
+        for (int r = 0; r < mRanks && failed < 0; ++r)
+            if (all[2 * size_t(r)]) failed = r;
+        if (failed < 0) {
+            for (int r = 1; r < mRanks; ++r)
+                if (all[2 * size_t(r) + 1] != all[1]) {
+                    if (mRank == 0)
+                        throw InputError("ranks 0 and " + std::to_string(r) + " read different block lists (" +
+                                         std::to_string(all[1]) + " and " + std::to_string(all[2 * size_t(r) + 1]) +
+                                         " blocks): the file changed or differs between machines");
+                    throw PeerFailed("ranks disagree on the input");
+                }
+            return;
+        }
+        // The first failed rank's message goes to rank 0, which reports it.
+        if (failed > 0 && mRank == failed) sendPayload(error.data(), error.size(), 0, kAgreeTag);
+        std::string message = error;
+        if (failed > 0 && mRank == 0) {
+            const std::vector<char> text = receivePayload(failed, kAgreeTag);
+            message.assign(text.begin(), text.end());
+        }
+        if (!error.empty()) return;  // the caller goes on with its own error
+        if (mRank == 0) throw InputError(message + " (rank " + std::to_string(failed) + ")");
+        throw PeerFailed("rank " + std::to_string(failed) + " failed");
+    }
+
+    void send(size_t to, const std::vector<char>& bytes, const std::string& error) override
+    {
+        const uint64_t failed = error.empty() ? 0 : 1;
+        check(MPI_Send(&failed, 1, MPI_UINT64_T, int(to), kNodeTag, MPI_COMM_WORLD), "send");
+        if (failed) sendPayload(error.data(), error.size(), int(to), kNodeTag);
+        else sendPayload(bytes.data(), bytes.size(), int(to), kNodeTag);
+    }
+
+    std::vector<char> receive(size_t from) override
+    {
+        uint64_t failed = 0;
+        check(MPI_Recv(&failed, 1, MPI_UINT64_T, int(from), kNodeTag, MPI_COMM_WORLD, MPI_STATUS_IGNORE), "receive");
+        std::vector<char> payload = receivePayload(int(from), kNodeTag);
+        if (failed) {
+            const std::string message(payload.begin(), payload.end());
+            if (mRank == 0) throw InputError(message);
+            throw PeerFailed(message);
+        }
+        return payload;
+    }
+
+private:
+    int mRank, mRanks;
+};
+
+} // namespace
+
+MpiRun::MpiRun(int& argc, char**& argv)
+{
+    int provided = 0;
+    if (MPI_Init_thread(&argc, &argv, MPI_THREAD_SERIALIZED, &provided) != MPI_SUCCESS)
+        throw std::runtime_error("MPI could not start");
+    // Messages are sent from whichever thread runs the tree, one at a time.
+    if (provided < MPI_THREAD_SERIALIZED) {
+        MPI_Finalize();
+        throw std::runtime_error("this MPI library cannot be called from more than one thread");
+    }
+    MPI_Comm_rank(MPI_COMM_WORLD, &mRank);
+    MPI_Comm_size(MPI_COMM_WORLD, &mRanks);
+}
+
+MpiRun::~MpiRun()
+{
+    MPI_Finalize();
+}
+
+Result MpiRun::simplifyFile(const std::string& path, const Options& options, Progress* progress)
+{
+    MpiChannel channel(mRank, mRanks);
+    return simplifyVolume([&] { return Volume::open(path, options.gridName); }, path, options, progress, &channel);
+}
+
+#else
+
+MpiRun::MpiRun(int&, char**&)
+{
+    throw std::runtime_error("started by mpirun, but this build has no MPI (install libopenmpi-dev and rebuild)");
+}
+
+MpiRun::~MpiRun() = default;
+
+Result MpiRun::simplifyFile(const std::string& path, const Options& options, Progress* progress)
+{
+    return vdb_isosimp::simplifyFile(path, options, progress);
+}
+
+#endif
+
+} // namespace vdb_isosimp

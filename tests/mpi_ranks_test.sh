@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Distributed runs (mpirun -np N vdb_isosimp): the same bytes as one process for 1, 2 and 4 ranks and
+# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf that one
+# rank reads, a killed rank) ends the run non-zero with one line of ours and no output file.
+# Usage: mpi_ranks_test.sh BUILD_DIR
+set -euo pipefail
+B=$1
+W=$(mktemp -d)
+trap 'rm -rf "$W"' EXIT
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+fail() { echo "FAIL: $*"; exit 1; }
+
+"$B/make_volume" noise -n 112 -o "$W/v.vdb" > /dev/null
+"$B/make_volume" ct-int -n 96 --rotated -o "$W/ct.vdb" > /dev/null
+for V in v ct; do
+  # About 30 and 20 slabs: enough for every rank to hold several and for the tree to be a few levels deep.
+  ARGS=(--ratio 0.05 --slab-blocks 64 -q)
+  "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" -o "$W/${V}_one.ply" --report "$W/${V}_one.json"
+  slabs=$(sed -n 's/.*"slabs": *\([0-9]*\).*/\1/p' "$W/${V}_one.json")
+  [ "$slabs" -ge 8 ] || fail "$V: only $slabs slabs"
+  for N in 1 2 4; do
+    for T in 1 2; do
+      mpirun -np $N "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" --threads $T -o "$W/${V}_$N.ply" --report "$W/${V}_$N.json"
+      cmp "$W/${V}_one.ply" "$W/${V}_$N.ply" || fail "$V: $N ranks x $T threads wrote other bytes"
+      ranks=$(sed -n 's/.*"ranks": *\([0-9]*\).*/\1/p' "$W/${V}_$N.json")
+      [ "$ranks" = "$N" ] || fail "$V: report says $ranks ranks, not $N"
+      grep -q "\"rank_seconds\": \[[0-9]" "$W/${V}_$N.json" || fail "$V: no per-rank seconds"
+      echo "$V: $N ranks x $T threads: same bytes as one process ($slabs slabs)"
+    done
+  done
+done
+
+# Damaged voxels that only the last rank reads (the leaf at z = 96 of 112; rank 0 reads z < 72): the
+# error travels up the tree to rank 0, which alone reports it.
+cp "$W/v.vdb" "$W/bad.vdb"
+size=$(stat -c %s "$W/bad.vdb")
+head -c 4000 /dev/zero | tr '\0' 'Z' | dd of="$W/bad.vdb" bs=1 seek=$((size * 60 / 100)) conv=notrunc status=none
+for N in 2 4; do
+  set +e
+  mpirun -np $N "$B/vdb_isosimp" "$W/bad.vdb" --ratio 0.05 --slab-blocks 64 -q -o "$W/bad.ply" 2> "$W/bad.err"
+  code=$?
+  set -e
+  [ $code -ne 0 ] || fail "damaged file: exit 0"
+  ours=$(grep -c '^vdb_isosimp: ' "$W/bad.err" || true)
+  [ "$ours" = 1 ] || { cat "$W/bad.err"; fail "damaged file, $N ranks: $ours lines of ours, not 1"; }
+  grep '^vdb_isosimp: ' "$W/bad.err" | grep -q "bad.vdb.*leaf \[64, 16, 96\]" || fail "damaged file: the line does not name the file and leaf"
+  ls "$W"/bad.ply* > /dev/null 2>&1 && fail "damaged file: output left behind"
+  echo "damaged file, $N ranks: exit $code, one line: $(grep '^vdb_isosimp: ' "$W/bad.err")"
+done
+
+# A missing file on every rank: one line, not one per rank.
+set +e
+mpirun -np 4 "$B/vdb_isosimp" "$W/missing.vdb" -q -o "$W/missing.ply" 2> "$W/missing.err"
+code=$?
+set -e
+[ $code -ne 0 ] || fail "missing file: exit 0"
+ours=$(grep -c '^vdb_isosimp: ' "$W/missing.err" || true)
+[ "$ours" = 1 ] || { cat "$W/missing.err"; fail "missing file: $ours lines of ours, not 1"; }
+echo "missing file: exit $code, one line"
+
+# A killed rank: mpirun ends the others; nothing is written.
+"$B/make_volume" noise -n 160 -o "$W/big.vdb" > /dev/null
+mpirun -np 2 "$B/vdb_isosimp" "$W/big.vdb" --ratio 0.05 --slab-blocks 64 --threads 1 -q -o "$W/kill.ply" \
+  > /dev/null 2> "$W/kill.err" &
+run=$!
+victim=""
+for _ in $(seq 100); do
+  victim=$(pgrep -f "^$B/vdb_isosimp $W/big.vdb" | sort -n | tail -1 || true)
+  [ -n "$victim" ] && [ "$(pgrep -f "^$B/vdb_isosimp $W/big.vdb" | wc -l)" -ge 2 ] && break
+  sleep 0.1
+done
+sleep 0.5
+kill -9 "$victim"
+set +e
+wait $run
+code=$?
+set -e
+[ $code -ne 0 ] || fail "killed rank: exit 0"
+ls "$W"/kill.ply* > /dev/null 2>&1 && fail "killed rank: output left behind"
+echo "killed rank: exit $code, no output"
+echo "PASS"
