@@ -96,7 +96,14 @@ struct Report {
     uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.
     uint64_t ranks = 1;
-    std::vector<double> rankSeconds, rankPeakRssMb;
+    std::vector<double> rankSeconds, rankPeakRssMb, rankBytesSent;
+    // Seconds of each node of the merge tree this process made: a slab's extraction (end = first + 1)
+    // or the join of two siblings; for the scaling model of docs/scale.md.
+    struct TreeNode {
+        uint32_t firstSlab = 0, endSlab = 0;
+        double seconds = 0.0;
+    };
+    std::vector<TreeNode> tree;
     std::vector<DecimationRecord> trace;
 };
 

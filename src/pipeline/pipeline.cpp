@@ -151,8 +151,12 @@ private:
     // below, behind and left of it that this process extracts): at zero the leaf is freed.
     std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
     size_t mRankBlocks = 0;  // blocks this process extracts (all of them without ranks)
-    // Seconds and peak memory of each rank (rank 0 first), gathered up the tree with the meshes.
-    std::vector<double> mRankSeconds, mRankPeakRss;
+    // Seconds, peak memory and bytes sent of each rank below this one, gathered up the tree with the
+    // meshes; and the seconds of each node made here.
+    std::vector<double> mRankSeconds, mRankPeakRss, mRankBytes;
+    std::mutex mTreeMutex;
+    std::vector<Report::TreeNode> mTree;
+    void timed(size_t l, size_t r, double start);
     // Range of the values sampled so far; voxel buffers are released as blocks finish, so the grid
     // itself can no longer be asked once extraction has run.
     std::array<double, 2> mSampled{0.0, 0.0};
@@ -289,7 +293,10 @@ PipelineRun::IntegratorPtr PipelineRun::rankSubtree(size_t l, size_t r, size_t a
         }
         throw;
     }
-    join(*left, readRankMessage(mRanks->receive(share.rightBegin)), l, r);
+    SlabPiece right = readRankMessage(mRanks->receive(share.rightBegin));
+    const double start = mClock.seconds();
+    join(*left, std::move(right), l, r);
+    timed(l, r, start);
     return left;
 }
 
@@ -300,8 +307,17 @@ PipelineRun::IntegratorPtr PipelineRun::localSubtree(size_t l, size_t r)
     const size_t m = mergeSplit(l, r);
     IntegratorPtr left, right;
     tbb::parallel_invoke([&] { left = localSubtree(l, m); }, [&] { right = localSubtree(m, r); });
+    const double start = mClock.seconds();
     join(*left, right->takePiece(), l, r);
+    timed(l, r, start);
     return left;
+}
+
+void PipelineRun::timed(size_t l, size_t r, double start)
+{
+    const double seconds = mClock.seconds() - start;
+    std::lock_guard<std::mutex> lock(mTreeMutex);
+    mTree.push_back({uint32_t(l), uint32_t(r), seconds});
 }
 
 // Siblings [l, m) and [m, r) join: the right one's mesh moves into the left one's, and the vertices
@@ -315,6 +331,7 @@ void PipelineRun::join(Integrator& left, SlabPiece&& right, size_t l, size_t r) 
 // One slab's blocks: extracted in parallel, integrated (and decimated every batch) in block order.
 PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
 {
+    const double start = mClock.seconds();
     auto integ = std::make_unique<Integrator>(mOpt, mRatio, mSlabBatch, uint32_t(si));
     Decimator& dec = integ->decimator();
     dec.setVoxelArea(mVoxelArea);
@@ -349,6 +366,7 @@ PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
     integ->finishSlab();
     // Dead entries are dropped before the queue is copied by a merge.
     dec.compactQueue();
+    timed(si, si + 1, start);
     return integ;
 }
 
@@ -425,15 +443,18 @@ void PipelineRun::releaseSampledLeaves(size_t i)
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
 std::vector<char> PipelineRun::rankMessage(SlabPiece&& piece) const
 {
-    std::vector<double> stats = mRankSeconds, rss = mRankPeakRss;
+    std::vector<double> stats = mRankSeconds, rss = mRankPeakRss, sent = mRankBytes;
     stats.insert(stats.begin(), mClock.seconds());
     rss.insert(rss.begin(), peakRssMb());
+    sent.insert(sent.begin(), 0.0);
     std::vector<char> out;
     const uint64_t n = stats.size();
     out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
-    for (const std::vector<double>* v : {&stats, &rss})
+    for (const std::vector<double>* v : {&stats, &rss, &sent})
         out.insert(out.end(), reinterpret_cast<const char*>(v->data()), reinterpret_cast<const char*>(v->data() + n));
     writePieceBytes(std::move(piece), out);
+    const double bytes = double(out.size());  // this rank's entry: the message itself
+    std::memcpy(out.data() + sizeof n + 2 * n * sizeof(double), &bytes, sizeof bytes);
     return out;
 }
 
@@ -442,14 +463,14 @@ SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
     uint64_t n = 0;
     if (bytes.size() < sizeof n) throw std::runtime_error("merge tree message: bytes end early");
     std::memcpy(&n, bytes.data(), sizeof n);
-    const size_t head = sizeof n + 2 * n * sizeof(double);
+    const size_t head = sizeof n + 3 * n * sizeof(double);
     if (n > bytes.size() || bytes.size() < head) throw std::runtime_error("merge tree message: bytes end early");
-    const double* stats = reinterpret_cast<const double*>(bytes.data() + sizeof n);
-    std::vector<double> seconds(n), rss(n);
-    std::memcpy(seconds.data(), stats, n * sizeof(double));
-    std::memcpy(rss.data(), stats + n, n * sizeof(double));
-    mRankSeconds.insert(mRankSeconds.end(), seconds.begin(), seconds.end());
-    mRankPeakRss.insert(mRankPeakRss.end(), rss.begin(), rss.end());
+    for (std::vector<double>* v : {&mRankSeconds, &mRankPeakRss, &mRankBytes}) {
+        const size_t k = v == &mRankSeconds ? 0 : v == &mRankPeakRss ? 1 : 2;
+        std::vector<double> column(n);
+        std::memcpy(column.data(), bytes.data() + sizeof n + k * n * sizeof(double), n * sizeof(double));
+        v->insert(v->end(), column.begin(), column.end());
+    }
     return readPieceBytes(bytes.data() + head, bytes.size() - head);
 }
 
@@ -497,9 +518,12 @@ Result PipelineRun::rankReport()
     if (mRanks) {
         rep.rankSeconds = mRankSeconds;
         rep.rankPeakRssMb = mRankPeakRss;
+        rep.rankBytesSent = mRankBytes;
         rep.rankSeconds.insert(rep.rankSeconds.begin(), rep.seconds);
         rep.rankPeakRssMb.insert(rep.rankPeakRssMb.begin(), rep.peakRssMb);
+        rep.rankBytesSent.insert(rep.rankBytesSent.begin(), 0.0);
     }
+    rep.tree = std::move(mTree);
     return std::move(mResult);
 }
 

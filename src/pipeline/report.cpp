@@ -9,6 +9,11 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
     const auto integer = [](const char* name, uint64_t v) { return ReportField{name, K::Integer, {}, v, 0.0, {}}; };
     const auto real = [](const char* name, double v) { return ReportField{name, K::Real, {}, 0, v, {}}; };
     const auto reals = [](const char* name, const std::vector<double>& v) { return ReportField{name, K::Reals, {}, 0, 0.0, v}; };
+    const auto column = [&r](auto&& f) {
+        std::vector<double> v;
+        for (const Report::TreeNode& n : r.tree) v.push_back(f(n));
+        return v;
+    };
     return {text("input", r.file),
             text("grid", r.grid),
             text("value_type", r.valueType),
@@ -33,7 +38,11 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("peak_rss_mb", r.peakRssMb),
             integer("ranks", r.ranks),
             reals("rank_seconds", r.rankSeconds),
-            reals("rank_peak_rss_mb", r.rankPeakRssMb)};
+            reals("rank_peak_rss_mb", r.rankPeakRssMb),
+            reals("rank_bytes_sent", r.rankBytesSent),
+            reals("tree_first_slab", column([](const Report::TreeNode& n) { return double(n.firstSlab); })),
+            reals("tree_end_slab", column([](const Report::TreeNode& n) { return double(n.endSlab); })),
+            reals("tree_seconds", column([](const Report::TreeNode& n) { return n.seconds; }))};
 }
 
 } // namespace vdb_isosimp

@@ -1,0 +1,124 @@
+#!/usr/bin/env python3
+"""Scaling model of the merge tree (docs/scale.md), from the measured seconds of one run.
+
+Input: the --report JSON of a single-process run (threads 1 gives clean per-node seconds: tree_first_slab,
+tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
+Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
+  setup    : opening the file, the topology and the block list; every rank repeats it (serial).
+  tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
+             after another); more -> max(left, right + transfer) + the join's own seconds.
+  final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
+The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
+output face of the subtree (measured bytes per rank / faces, docs/scale.md).
+Prints a table of W -> modelled seconds and speed-up, and writes an SVG plot.
+Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
+"""
+import json
+import sys
+
+BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
+MESSAGE_BYTES_PER_FACE = 70.0  # measured: rank_bytes_sent / faces of the subtree (docs/scale.md)
+WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
+
+
+def merge_split(l, r):
+    return l + (r - l + 1) // 2
+
+
+def split_ranks(l, r, a, b):
+    m = merge_split(l, r)
+    ranks = b - a
+    share = ranks * (m - l) / (r - l)
+    left = min(max(int(share + 0.5), 1), ranks - 1)
+    return a + left
+
+
+def model(report, wall):
+    first = report["tree_first_slab"]
+    end = report["tree_end_slab"]
+    secs = report["tree_seconds"]
+    node = {(int(f), int(e)): s for f, e, s in zip(first, end, secs)}
+    slabs = int(report["slabs"])
+    faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
+    final = report["seconds_final"] + max(0.0, wall - report["seconds"])
+    setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"])
+
+    def serial(l, r):
+        if r - l == 1:
+            return node[(l, r)]
+        m = merge_split(l, r)
+        return serial(l, m) + serial(m, r) + node[(l, r)]
+
+    def parallel(l, r, a, b):
+        if b - a < 2 or r - l < 2:
+            return serial(l, r)
+        m = merge_split(l, r)
+        c = split_ranks(l, r, a, b)
+        transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
+        return max(parallel(l, m, a, c), parallel(m, r, c, b) + transfer) + node[(l, r)]
+
+    one = setup + serial(0, slabs) + final
+    rows = []
+    for w in WORKERS:
+        t = setup + parallel(0, slabs, 0, w) + final
+        rows.append((w, t, one / t))
+    return setup, serial(0, slabs), final, rows
+
+
+def svg(curves, path):
+    W, H, L, B = 560, 380, 60, 50
+    import math
+    xmax = math.log2(WORKERS[-1])
+    ymax = max(max(s for _, _, s in rows) for _, rows in curves) * 1.1
+    ymax = max(ymax, 16)
+
+    def x(w):
+        return L + (W - L - 20) * math.log2(w) / xmax
+
+    def y(s):
+        return H - B - (H - B - 20) * s / ymax
+
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">',
+           f'<rect width="{W}" height="{H}" fill="white"/>']
+    for w in WORKERS:
+        out.append(f'<line x1="{x(w):.1f}" y1="{H-B}" x2="{x(w):.1f}" y2="20" stroke="#ddd"/>')
+        out.append(f'<text x="{x(w):.1f}" y="{H-B+16}" text-anchor="middle">{w}</text>')
+    step = 10 if ymax <= 80 else 20
+    for s in range(0, int(ymax) + 1, step):
+        out.append(f'<line x1="{L}" y1="{y(s):.1f}" x2="{W-20}" y2="{y(s):.1f}" stroke="#eee"/>')
+        out.append(f'<text x="{L-6}" y="{y(s)+4:.1f}" text-anchor="end">{s}</text>')
+    out.append(f'<polyline fill="none" stroke="#999" stroke-dasharray="4 3" points="' +
+               " ".join(f"{x(w):.1f},{y(min(w, ymax)):.1f}" for w in WORKERS if w <= ymax) + '"/>')
+    colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"]
+    for i, (label, rows) in enumerate(curves):
+        c = colours[i % len(colours)]
+        out.append(f'<polyline fill="none" stroke="{c}" stroke-width="2" points="' +
+                   " ".join(f"{x(w):.1f},{y(s):.1f}" for w, _, s in rows) + '"/>')
+        out.append(f'<text x="{L+10}" y="{36+16*i}" fill="{c}">{label}</text>')
+    out.append(f'<text x="{(W+L)/2}" y="{H-12}" text-anchor="middle">workers (ranks of one thread)</text>')
+    out.append(f'<text x="16" y="{H/2}" transform="rotate(-90 16 {H/2})" text-anchor="middle">modelled speed-up</text>')
+    out.append('</svg>')
+    open(path, "w").write("\n".join(out) + "\n")
+
+
+def main(argv):
+    if len(argv) < 5 or (len(argv) - 2) % 3:
+        sys.exit(__doc__)
+    out = argv[-1]
+    curves = []
+    for i in range(1, len(argv) - 1, 3):
+        report = json.load(open(argv[i]))
+        wall, label = float(argv[i + 1]), argv[i + 2]
+        setup, tree, final, rows = model(report, wall)
+        print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
+        print("| workers | modelled seconds | speed-up |")
+        print("|---|---|---|")
+        for w, t, s in rows:
+            print(f"| {w} | {t:.2f} | {s:.1f}x |")
+        print()
+        curves.append((label, rows))
+    svg(curves, out)
+
+
+if __name__ == "__main__":
+    main(sys.argv)
