@@ -13,19 +13,26 @@ fail() { echo "FAIL: $*"; exit 1; }
 "$B/make_volume" noise -n 112 -o "$W/v.vdb" > /dev/null
 "$B/make_volume" ct-int -n 96 --rotated -o "$W/ct.vdb" > /dev/null
 for V in v ct; do
-  # About 30 and 20 slabs: enough for every rank to hold several and for the tree to be a few levels deep.
-  ARGS=(--ratio 0.05 --slab-blocks 64 -q)
+  # About 50 and 35 slabs: enough for every rank to hold several and for the tree to be a few levels
+  # deep; a batch of 1000 faces makes every slab and every join decimate (the merges carry queues).
+  # The noise volume runs with a face target: each rank counts its own blocks' faces.
+  ARGS=(--batch 1000 --slab-blocks 64 -q)
+  if [ $V = v ]; then ARGS+=(--faces 10000); else ARGS+=(--ratio 0.05); fi
   "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" -o "$W/${V}_one.ply" --report "$W/${V}_one.json"
   slabs=$(sed -n 's/.*"slabs": *\([0-9]*\).*/\1/p' "$W/${V}_one.json")
+  decimations=$(sed -n 's/.*"decimations": *\([0-9]*\).*/\1/p' "$W/${V}_one.json")
   [ "$slabs" -ge 8 ] || fail "$V: only $slabs slabs"
+  [ "$decimations" -ge $((2 * slabs)) ] || fail "$V: only $decimations decimations for $slabs slabs"
+  full=$(sed -n 's/.*"faces_full": *\([0-9]*\).*/\1/p' "$W/${V}_one.json")
   for N in 1 2 4; do
     for T in 1 2; do
       mpirun -np $N "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" --threads $T -o "$W/${V}_$N.ply" --report "$W/${V}_$N.json"
       cmp "$W/${V}_one.ply" "$W/${V}_$N.ply" || fail "$V: $N ranks x $T threads wrote other bytes"
       ranks=$(sed -n 's/.*"ranks": *\([0-9]*\).*/\1/p' "$W/${V}_$N.json")
       [ "$ranks" = "$N" ] || fail "$V: report says $ranks ranks, not $N"
+      grep -q "\"faces_full\": $full," "$W/${V}_$N.json" || fail "$V: $N ranks counted other than $full faces"
       grep -q "\"rank_seconds\": \[[0-9]" "$W/${V}_$N.json" || fail "$V: no per-rank seconds"
-      echo "$V: $N ranks x $T threads: same bytes as one process ($slabs slabs)"
+      echo "$V: $N ranks x $T threads: same bytes as one process ($slabs slabs, $decimations decimations)"
     done
   done
 done

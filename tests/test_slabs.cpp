@@ -114,6 +114,15 @@ TEST(Slabs, RankSharesMakeEveryNodeOnce)
                 }
             }
             EXPECT_EQ(working.size(), std::min(slabs, ranks)) << slabs << " slabs, " << ranks << " ranks";
+            // The slabs each rank extracts itself: consecutive shares that cover every slab once.
+            size_t next = 0;
+            for (size_t rank = 0; rank < ranks; ++rank) {
+                const auto [first, end] = rankSlabs(slabs, rank, ranks);
+                if (first == end) continue;
+                EXPECT_EQ(first, next) << slabs << " slabs, rank " << rank << " of " << ranks;
+                next = end;
+            }
+            EXPECT_EQ(next, slabs) << slabs << " slabs, " << ranks << " ranks";
         }
 }
 

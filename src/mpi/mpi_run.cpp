@@ -62,24 +62,26 @@ public:
     size_t rank() const override { return size_t(mRank); }
     size_t ranks() const override { return size_t(mRanks); }
 
-    void agree(const std::string& error, uint64_t blocks) override
+    uint64_t agree(const std::string& error, uint64_t blocks, uint64_t faces) override
     {
-        const uint64_t mine[2] = {error.empty() ? 0u : 1u, blocks};
-        std::vector<uint64_t> all(2 * size_t(mRanks));
-        check(MPI_Allgather(mine, 2, MPI_UINT64_T, all.data(), 2, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
+        const uint64_t mine[3] = {error.empty() ? 0u : 1u, blocks, faces};
+        std::vector<uint64_t> all(3 * size_t(mRanks));
+        check(MPI_Allgather(mine, 3, MPI_UINT64_T, all.data(), 3, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
         int failed = -1;
         for (int r = 0; r < mRanks && failed < 0; ++r)
-            if (all[2 * size_t(r)]) failed = r;
+            if (all[3 * size_t(r)]) failed = r;
         if (failed < 0) {
-            for (int r = 1; r < mRanks; ++r)
-                if (all[2 * size_t(r) + 1] != all[1]) {
-                    if (mRank == 0)
-                        throw InputError("ranks 0 and " + std::to_string(r) + " read different block lists (" +
-                                         std::to_string(all[1]) + " and " + std::to_string(all[2 * size_t(r) + 1]) +
-                                         " blocks): the file changed or differs between machines");
-                    throw PeerFailed("ranks disagree on the input");
-                }
-            return;
+            uint64_t sum = 0;
+            for (int r = 0; r < mRanks; ++r) {
+                sum += all[3 * size_t(r) + 2];
+                if (all[3 * size_t(r) + 1] == all[1]) continue;
+                if (mRank == 0)
+                    throw InputError("ranks 0 and " + std::to_string(r) + " read different block lists (" +
+                                     std::to_string(all[1]) + " and " + std::to_string(all[3 * size_t(r) + 1]) +
+                                     " blocks): the file changed or differs between machines");
+                throw PeerFailed("ranks disagree on the input");
+            }
+            return sum;
         }
         // The first failed rank's message goes to rank 0, which reports it.
         if (failed > 0 && mRank == failed) sendPayload(error.data(), error.size(), 0, kAgreeTag);
@@ -88,7 +90,7 @@ public:
             const std::vector<char> text = receivePayload(failed, kAgreeTag);
             message.assign(text.begin(), text.end());
         }
-        if (!error.empty()) return;  // the caller goes on with its own error
+        if (!error.empty()) return 0;  // the caller goes on with its own error
         if (mRank == 0) throw InputError(message + " (rank " + std::to_string(failed) + ")");
         throw PeerFailed("rank " + std::to_string(failed) + " failed");
     }

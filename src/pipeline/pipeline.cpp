@@ -72,13 +72,13 @@ tbb::filter<void, size_t> indices(size_t& next, size_t end)
 // Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
 // on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
 // (blocks in order, as in extraction), so counting does not load the whole volume at once.
-uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, const Classifier& cls)
+uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls)
 {
     uint64_t total = 0;
-    size_t next = 0;
+    size_t next = begin;
     tbb::parallel_pipeline(
         4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
-        indices(next, blocks.size()) &
+        indices(next, end) &
             tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel,
                                                                   [&](size_t i) {
                                                                       BlockSamples s;
@@ -106,9 +106,10 @@ public:
     void openVolume(const VolumeOpener& open);
     void chooseIso();
     void listBlocks();
-    void setTarget(const VolumeOpener& open);
     void splitSlabs();
+    void countFacesForTarget(const VolumeOpener& open);
     void agreeAmongRanks(const std::string& error);
+    void setTarget();
     bool runTree();
     Result finalPass();
     Result rankReport();
@@ -124,6 +125,7 @@ private:
     void integrateBlock(Integrator& integ, const BlockMesh& m);
     void releaseSampledLeaves(size_t i);
     size_t blockIndex(const BlockOrigin& o) const;
+    std::pair<size_t, size_t> rankBlocks() const;
     std::vector<char> rankMessage(SlabPiece&& piece) const;
     SlabPiece readRankMessage(const std::vector<char>& bytes);
     EmptySurfaceError noSurface() const;
@@ -211,20 +213,27 @@ void PipelineRun::listBlocks()
     if (mBlocks.empty()) throw noSurface();
 }
 
-void PipelineRun::setTarget(const VolumeOpener& open)
+// For a face target: the faces of the full-resolution surface, counted over this process's blocks
+// (with ranks, each counts its own share and agreeAmongRanks adds them up).
+void PipelineRun::countFacesForTarget(const VolumeOpener& open)
 {
-    mRatio = mOpt.ratio;
     if (mOpt.targetFaces == 0) return;
+    const auto [begin, end] = rankBlocks();
     // Counted on the volume itself, which frees leaves as it goes, then opened again for extraction:
     // one copy of the topology at a time (a second copy made the start of a run its peak on large
     // inputs kept to small outputs).
-    Report& rep = mResult.report;
-    rep.facesFull = countFaces(*mVol, mBlocks, mCls);
+    mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls);
     mVol.reset();
     malloc_trim(0);
     mVol = open();
-    if (rep.facesFull == 0) throw noSurface();
-    mRatio = std::min(1.0, double(mOpt.targetFaces) / double(rep.facesFull));
+}
+
+void PipelineRun::setTarget()
+{
+    mRatio = mOpt.ratio;
+    if (mOpt.targetFaces == 0) return;
+    if (mResult.report.facesFull == 0) throw noSurface();
+    mRatio = std::min(1.0, double(mOpt.targetFaces) / double(mResult.report.facesFull));
 }
 
 // Slabs: runs of consecutive blocks, each extracted and decimated on its own by its own integrator.
@@ -243,7 +252,7 @@ void PipelineRun::splitSlabs()
 // (unreadable file there) stops all of them, with its message on rank 0.
 void PipelineRun::agreeAmongRanks(const std::string& error)
 {
-    if (mRanks) mRanks->agree(error, mBlocks.size());
+    if (mRanks) mResult.report.facesFull = mRanks->agree(error, mBlocks.size(), mResult.report.facesFull);
 }
 
 // The merge tree (slabs.h): this process's node of it, made from its slabs and the nodes its child
@@ -258,7 +267,8 @@ bool PipelineRun::runTree()
         mResult.report.secondsSlabs = 0.0;
         return false;
     }
-    countLeafSamplers(mSlabs[node.l].begin, mSlabs[node.r - 1].end);
+    const auto [begin, end] = rankBlocks();
+    countLeafSamplers(begin, end);
     IntegratorPtr result;
     try {
         result = rankSubtree(node.l, node.r, node.a, node.b);
@@ -403,6 +413,14 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
         throw Cancelled("cancelled");
 }
 
+// The blocks this process extracts: all of them, or the slabs of its rank.
+std::pair<size_t, size_t> PipelineRun::rankBlocks() const
+{
+    if (!mRanks) return {0, mBlocks.size()};
+    const auto [l, r] = rankSlabs(mSlabs.size(), mRanks->rank(), mRanks->ranks());
+    return l == r ? std::pair<size_t, size_t>{0, 0} : std::pair<size_t, size_t>{mSlabs[l].begin, mSlabs[r - 1].end};
+}
+
 // Index of the block at origin `o` in the list, or the list's size if it is not there.
 size_t PipelineRun::blockIndex(const BlockOrigin& o) const
 {
@@ -545,13 +563,14 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.openVolume(open);
         run.chooseIso();
         run.listBlocks();
-        run.setTarget(open);
         run.splitSlabs();
+        run.countFacesForTarget(open);
     } catch (const std::exception& e) {
         run.agreeAmongRanks(e.what());
         throw;
     }
     run.agreeAmongRanks({});
+    run.setTarget();
     if (!run.runTree()) return run.rankReport();
     return run.finalPass();
 }

@@ -48,6 +48,18 @@ RankNode rankNode(size_t slabs, size_t rank, size_t ranks)
     }
 }
 
+std::pair<size_t, size_t> rankSlabs(size_t slabs, size_t rank, size_t ranks)
+{
+    const RankNode n = rankNode(slabs, rank, ranks);
+    if (!n.found) return {0, 0};
+    size_t l = n.l, r = n.r, a = n.a, b = n.b;
+    while (b - a >= 2 && r - l >= 2) {  // the left child stays with this rank (rankSubtree)
+        b = splitRanks(l, r, a, b).leftEnd;
+        r = mergeSplit(l, r);
+    }
+    return {l, r};
+}
+
 EdgeBlocks edgeBlocks(EdgeKey key)
 {
     // The cells around an edge from voxel v along axis a are v - {0,1} e_b - {0,1} e_c: the one at v

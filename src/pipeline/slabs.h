@@ -52,6 +52,10 @@ struct RankNode {
 };
 RankNode rankNode(size_t slabs, size_t rank, size_t ranks);
 
+// The slabs rank `rank` extracts itself: [first, end), empty for a rank left without slabs. The rest of
+// its node's slabs come from the ranks it receives from.
+std::pair<size_t, size_t> rankSlabs(size_t slabs, size_t rank, size_t ranks);
+
 // Where a vertex's edge lies in the block order: the vertex is made by the cells around its edge, and
 // the first and last of those in z/y/x order sit in the blocks `first` and `last` (block origins).
 // A vertex is final inside a slab when both lie in it, and at a merge node when both lie in the
