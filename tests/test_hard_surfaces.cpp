@@ -20,9 +20,11 @@ namespace {
 
 constexpr int kSize = 64;  // voxels across each solid: 14k to 42k faces at full resolution
 
-Result run(const volumes::TestVolume& v, double ratio, uint64_t batch = Options{}.batchFaces, int threads = 0)
+Result run(const volumes::TestVolume& v, double ratio, uint64_t batch = Options{}.batchFaces, int threads = 0,
+           uint64_t blocksPerSlab = Options{}.blocksPerSlab)
 {
     Options o;
+    o.blocksPerSlab = blocksPerSlab;
     o.ratio = ratio;
     o.iso = v.iso;
     o.batchFaces = batch;
@@ -63,16 +65,22 @@ INSTANTIATE_TEST_SUITE_P(Volumes, HardSurface,
                          });
 
 // Acceptance 3 and 4 on integer data with the iso-value on an integer (many voxels exactly at it):
-// no zero-area face below R = 1, closed and outward, the same bytes for any thread count.
+// no zero-area face below R = 1, closed and outward, the same bytes for any thread count; also cut
+// into many slabs (16 blocks each), so seams run through coincident vertices and join in the tree.
 TEST(ExactIso, IntegerVolumeLeavesNoSliversAndIgnoresThreadCount)
 {
     for (bool rotated : {false, true}) {
         const volumes::TestVolume v = volumes::makeVolume("ct-int", kSize, rotated);
-        for (double r : {0.5, 0.2, 0.05}) {
-            const Result one = run(v, r, 1000, 1), two = run(v, r, 1000, 2);
-            vdb_isosimp::testing::expectClosedOutward(one.mesh, false, v.grid->getName() + " R=" + std::to_string(r));
-            EXPECT_TRUE(one.mesh.points == two.mesh.points && one.mesh.triangles == two.mesh.triangles) << r;
-        }
+        for (uint64_t perSlab : {Options{}.blocksPerSlab, uint64_t(16)})
+            for (double r : {0.5, 0.2, 0.05}) {
+                const Result one = run(v, r, 1000, 1, perSlab), two = run(v, r, 1000, 2, perSlab);
+                const std::string what = v.grid->getName() + " R=" + std::to_string(r) + " slabs " + std::to_string(one.report.slabs);
+                if (perSlab == 16) {
+                    EXPECT_GE(one.report.slabs, 16u) << what;
+                }
+                vdb_isosimp::testing::expectClosedOutward(one.mesh, false, what);
+                EXPECT_TRUE(one.mesh.points == two.mesh.points && one.mesh.triangles == two.mesh.triangles) << what;
+            }
     }
 }
 
@@ -80,7 +88,9 @@ TEST(ExactIso, BoxOnVoxelPlanesIgnoresThreadCount)
 {
     const volumes::TestVolume v = volumes::makeVolume("box", kSize, false);
     for (double r : {0.5, 0.05}) {
-        const Result one = run(v, r, 1000, 1), two = run(v, r, 1000, 2);
+        const Result one = run(v, r, 1000, 1, 16), two = run(v, r, 1000, 2, 16);
+        EXPECT_GE(one.report.slabs, 16u);
+        vdb_isosimp::testing::expectClosedOutward(one.mesh, false, "box R=" + std::to_string(r));
         EXPECT_TRUE(one.mesh.points == two.mesh.points && one.mesh.triangles == two.mesh.triangles) << r;
     }
 }
