@@ -4,7 +4,8 @@
 Input: the --report JSON of a single-process run (threads 1 gives clean per-node seconds: tree_first_slab,
 tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
 Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
-  setup    : opening the file, the topology and the block list; every rank repeats it (serial).
+  setup    : opening the file, the topology and the block list; every rank repeats it (serial). For
+             a face target, counting the faces: each rank counts its own slabs (divided by W).
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
@@ -41,7 +42,8 @@ def model(report, wall):
     slabs = int(report["slabs"])
     faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
-    setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"])
+    count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
+    setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count)
 
     def serial(l, r):
         if r - l == 1:
@@ -57,12 +59,12 @@ def model(report, wall):
         transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
         return max(parallel(l, m, a, c), parallel(m, r, c, b) + transfer) + node[(l, r)]
 
-    one = setup + serial(0, slabs) + final
+    one = setup + count + serial(0, slabs) + final
     rows = []
     for w in WORKERS:
-        t = setup + parallel(0, slabs, 0, w) + final
+        t = setup + count / min(w, slabs) + parallel(0, slabs, 0, w) + final
         rows.append((w, t, one / t))
-    return setup, serial(0, slabs), final, rows
+    return setup + count, serial(0, slabs), final, rows
 
 
 def svg(curves, path):

@@ -92,6 +92,7 @@ struct Report {
     double seconds = 0.0;
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
     double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
+    double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
     double peakRssMb = 0.0;
     uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.

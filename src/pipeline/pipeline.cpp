@@ -219,6 +219,7 @@ void PipelineRun::countFacesForTarget(const VolumeOpener& open)
 {
     if (mOpt.targetFaces == 0) return;
     const auto [begin, end] = rankBlocks();
+    const double start = mClock.seconds();
     // Counted on the volume itself, which frees leaves as it goes, then opened again for extraction:
     // one copy of the topology at a time (a second copy made the start of a run its peak on large
     // inputs kept to small outputs).
@@ -226,6 +227,7 @@ void PipelineRun::countFacesForTarget(const VolumeOpener& open)
     mVol.reset();
     malloc_trim(0);
     mVol = open();
+    mResult.report.secondsCount = mClock.seconds() - start;
 }
 
 void PipelineRun::setTarget()

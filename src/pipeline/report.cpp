@@ -35,6 +35,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds", r.seconds),
             real("seconds_slabs", r.secondsSlabs),
             real("seconds_final", r.secondsFinal),
+            real("seconds_count", r.secondsCount),
             real("peak_rss_mb", r.peakRssMb),
             integer("ranks", r.ranks),
             reals("rank_seconds", r.rankSeconds),
