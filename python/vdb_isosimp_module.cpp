@@ -178,7 +178,8 @@ PYBIND11_MODULE(vdb_isosimp, m)
           R"doc(Extract and simplify the iso-surface of a scalar OpenVDB grid.
 
 source   path of a .vdb file (str or os.PathLike), or a pyopenvdb FloatGrid/DoubleGrid (read only)
-grid     grid to mesh in the file; '' = the first float or double grid (ignored for a grid object)
+grid     grid to mesh in the file; '' = the first level set, else 'density', else the first float or
+         double grid (ignored for a grid object)
 iso      iso-value; None = 0 for level sets, the midpoint of the value range for other grids
 ratio    decimation rate in (0, 1]: faces kept / faces of the full-resolution surface (default 0.2)
 faces    if > 0: keep this many faces instead of `ratio`

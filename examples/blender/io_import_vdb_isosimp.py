@@ -129,7 +129,7 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
     filename_ext = ".vdb"
     filter_glob: StringProperty(default="*.vdb", options={"HIDDEN"})
 
-    grid: StringProperty(name="Grid", description="Grid to mesh; empty: the first float or double grid",
+    grid: StringProperty(name="Grid", description="Grid to mesh; empty: the first level set, else density, else the first float grid",
                          default="")
     auto_iso: BoolProperty(name="Automatic iso-value",
                            description="0 for level sets, the midpoint of the value range for fog volumes",
