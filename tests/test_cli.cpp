@@ -222,7 +222,8 @@ TEST(Cli, HelpExplainsEveryOption)
     const std::string cmd = std::string("'") + VDB_ISOSIMP_EXE + "' --help > '" + d + "/help.txt'";
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     const std::string help = slurp(d + "/help.txt");
-    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet"})
+    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet",
+                            "--frames", "--min-component", "smoke.####.vdb", "density"})
         EXPECT_NE(help.find(opt), std::string::npos) << opt;
 }
 
