@@ -363,13 +363,20 @@ TEST(CliFrames, PatternOnOneSideOnlyIsAUsageError)
 {
     const auto d = freshDir("frames_usage");
     writeSequence(d, {1, 2});
-    expectCleanFailure(run(d, "f.####.vdb -o m.ply"), 2, "-o needs a frame pattern too", d);
-    expectCleanFailure(run(d, "f.0001.vdb -o m.####.ply"), 2, "names a frame sequence but the input 'f.0001.vdb' does not", d);
-    expectCleanFailure(run(d, "f.####.vdb -o m.####.ply --report r.json"), 2, "--report 'r.json'", d);
-    expectCleanFailure(run(d, "f.0001.vdb -o m.ply --frames 1-2"), 2, "--frames: 'f.0001.vdb' is not a frame sequence", d);
-    expectCleanFailure(run(d, "f.####.vdb -o m.####.ply --frames 2-1"), 2, "--frames: '2-1'", d);
-    expectCleanFailure(run(d, "f.####.vdb -o m.####.ply --frames x"), 2, "--frames: 'x'", d);
-    expectCleanFailure(run(d, "g.####.vdb -o m.####.ply"), 1, "g.####.vdb: no file matches the frame pattern", d);
+    const struct {
+        const char* args;
+        int code;
+        const char* says;
+    } cases[] = {
+        {"f.####.vdb -o m.ply", 2, "-o needs a frame pattern too"},
+        {"f.0001.vdb -o m.####.ply", 2, "names a frame sequence but the input 'f.0001.vdb' does not"},
+        {"f.####.vdb -o m.####.ply --report r.json", 2, "--report 'r.json'"},
+        {"f.0001.vdb -o m.ply --frames 1-2", 2, "--frames: 'f.0001.vdb' is not a frame sequence"},
+        {"f.####.vdb -o m.####.ply --frames 2-1", 2, "--frames: '2-1'"},
+        {"f.####.vdb -o m.####.ply --frames x", 2, "--frames: 'x'"},
+        {"g.####.vdb -o m.####.ply", 1, "g.####.vdb: no file matches the frame pattern"},
+    };
+    for (const auto& c : cases) expectCleanFailure(run(d, c.args), c.code, c.says, d);
 }
 
 TEST(CliPrune, MinComponentKeepsTheBigSphereOnly)

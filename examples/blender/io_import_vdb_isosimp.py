@@ -241,32 +241,24 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
             if pattern is None:
                 self.report({"ERROR"}, "%s: no frame number in the file name" % os.path.basename(self.filepath))
                 return {"CANCELLED"}
+        chosen = self.choose_backend()
+        if chosen is None:
+            return {"CANCELLED"}
+        used, runner = chosen
         if pattern is not None:
-            return self.import_sequence(context, pattern, iso)
-        module = load_module() if self.backend in {"AUTO", "MODULE"} else None
+            return self.import_sequence(context, pattern, iso, used, runner)
         wm = context.window_manager
         try:
-            if module is not None:
+            if used == "module":
                 wm.progress_begin(0, 100)
                 try:
-                    verts, faces, report = module.simplify(
+                    verts, faces, report = runner.simplify(
                         self.filepath, grid=self.grid, iso=iso, ratio=self.ratio,
                         progress=lambda fraction, kept: wm.progress_update(int(100 * fraction)))
                 finally:
                     wm.progress_end()
-                used = "module"
-            elif self.backend == "MODULE":
-                self.report({"ERROR"}, "the vdb_isosimp Python module cannot be imported "
-                                       "(set its folder in the add-on preferences)")
-                return {"CANCELLED"}
             else:
-                program = find_program()
-                if not program:
-                    self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
-                                           "was found (set one in the add-on preferences)")
-                    return {"CANCELLED"}
-                verts, faces, report = run_program(program, self.filepath, self.grid, iso, self.ratio)
-                used = "program"
+                verts, faces, report = run_program(runner, self.filepath, self.grid, iso, self.ratio)
         except Exception as e:  # the library's errors are one readable line
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -281,25 +273,26 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
         self.report({"INFO"}, message)
         return {"FINISHED"}
 
-
-    def import_sequence(self, context, pattern, iso):
+    def choose_backend(self):
+        """("module", the module) or ("program", its path); None once the reason neither is usable is reported."""
         module = load_module() if self.backend in {"AUTO", "MODULE"} else None
+        if module is not None:
+            return "module", module
+        if self.backend == "MODULE":
+            self.report({"ERROR"}, "the vdb_isosimp Python module cannot be imported "
+                                   "(set its folder in the add-on preferences)")
+            return None
+        program = find_program()
+        if not program:
+            self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
+                                   "was found (set one in the add-on preferences)")
+            return None
+        return "program", program
+
+    def import_sequence(self, context, pattern, iso, used, runner):
+        run = run_module_sequence if used == "module" else run_program_sequence
         try:
-            if module is not None:
-                frames, errors = run_module_sequence(module, pattern, self.grid, iso, self.ratio)
-                used = "module"
-            elif self.backend == "MODULE":
-                self.report({"ERROR"}, "the vdb_isosimp Python module cannot be imported "
-                                       "(set its folder in the add-on preferences)")
-                return {"CANCELLED"}
-            else:
-                program = find_program()
-                if not program:
-                    self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
-                                           "was found (set one in the add-on preferences)")
-                    return {"CANCELLED"}
-                frames, errors = run_program_sequence(program, pattern, self.grid, iso, self.ratio)
-                used = "program"
+            frames, errors = run(runner, pattern, self.grid, iso, self.ratio)
         except Exception as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
