@@ -63,6 +63,7 @@ TEST(FramePattern, ListingAndRanges)
     EXPECT_EQ(framePaths(*p, std::nullopt, 3).size(), 2u);
     EXPECT_EQ(framePaths(*p, 2, 5).size(), 4u);         // a range: every frame, existing or not
     EXPECT_THROW(framePaths(*p, 5, 2), InputError);
+    EXPECT_THROW(framePaths(*p, 0, 5000000), InputError);
     EXPECT_THROW(framePaths(*parseFramePattern((dir / "none/f.####.vdb").string())), InputError);
     std::filesystem::remove_all(dir);
     // A pattern without a folder lists the current one.

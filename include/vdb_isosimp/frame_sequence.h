@@ -34,7 +34,7 @@ struct Frame {
 // range, whether its file exists or not (a missing one is the caller's error to report). Otherwise the
 // files of the pattern's folder that the pattern names, within the bound given if any (a folder
 // listing; none found gives an empty list).
-// @throw InputError when the folder cannot be listed, or first > last.
+// @throw InputError when the folder cannot be listed, first > last, or the range spans a million frames.
 std::vector<Frame> framePaths(const FramePattern& pattern, std::optional<int> first = std::nullopt,
                               std::optional<int> last = std::nullopt);
 

@@ -92,6 +92,11 @@ std::vector<Frame> framePaths(const FramePattern& pattern, std::optional<int> fi
     if (first && last && *first > *last)
         throw InputError("the first frame (" + std::to_string(*first) + ") comes after the last (" +
                          std::to_string(*last) + ")");
+    // A typing slip such as 1-100000000 would list paths for a long while before the first frame runs.
+    constexpr int kMaxRange = 1000000;
+    if (first && last && *last - *first >= kMaxRange)
+        throw InputError("the range " + std::to_string(*first) + "-" + std::to_string(*last) + " spans more than " +
+                         std::to_string(kMaxRange) + " frames");
     std::vector<Frame> frames;
     if (first && last) {
         for (int f = *first; f <= *last; ++f) frames.push_back({f, pattern.path(f)});
