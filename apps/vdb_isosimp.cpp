@@ -318,11 +318,11 @@ int meshSequence(const std::string& input, const FramePattern& out, const std::o
                  const std::optional<FramePattern>& trace, const std::vector<Frame>& frames, Options opt,
                  const OutputChoices& choices)
 {
-    TerminalProgress bar;
     int failed = 0;
     for (const Frame& f : frames) {
         const RunPaths p{f.path, out.path(f.number), report ? report->path(f.number) : "",
                          trace ? trace->path(f.number) : "", f.number};
+        TerminalProgress bar;  // a frame's own clock: the time left is the frame's
         Report r;
         const int code = meshOne(p, opt, choices, bar, &r);
         if (code >= 128) return code;
