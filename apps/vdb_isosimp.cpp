@@ -4,6 +4,7 @@
 #include "cli_parse.h"
 #include "json_text.h"
 #include "vdb_isosimp/errors.h"
+#include "vdb_isosimp/frame_sequence.h"
 #include "vdb_isosimp/mesh_writer.h"
 #include "vdb_isosimp/mpi_run.h"
 #include "vdb_isosimp/temporary_file.h"
@@ -22,9 +23,11 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <sys/stat.h>
 #include <thread>
+#include <tuple>
 #include <unistd.h>
 #include <vector>
 
@@ -240,6 +243,131 @@ void probeWritable(const std::string& path)
     std::remove(tmp.c_str());
 }
 
+// What one run reads and writes; a sequence has one per frame.
+struct RunPaths {
+    std::string input, output, report, trace;
+    int frame = -1;  // the frame of a sequence, -1 for a single file
+};
+
+struct OutputChoices {
+    bool ascii = false, normals = false, quiet = false;
+    MpiRun* mpi = nullptr;  // under mpirun: this process's share of each run; rank 0 alone writes
+};
+
+// One input to one mesh (and its report and trace): the summary line or one error line, and the exit
+// code (0 done, 1 bad input or output, 3 no surface, 128 + signal when interrupted). `done` gets the
+// report of a successful run.
+int meshOne(const RunPaths& p, const Options& opt, const OutputChoices& out, TerminalProgress& bar, Report* done)
+{
+    // In a sequence, errors say which frame failed; the message names the file too.
+    const std::string who = p.frame >= 0 ? "vdb_isosimp: frame " + std::to_string(p.frame) + ": " : "vdb_isosimp: ";
+    const std::string& input = p.input;
+    const std::string& output = p.output;
+    const std::string& reportPath = p.report;
+    const std::string& tracePath = p.trace;
+    const bool quiet = out.quiet;
+    const bool writer = !out.mpi || out.mpi->rank() == 0;
+    try {
+        formatForPath(output, out.ascii);  // an unsupported extension fails before the long run
+        if (writer) probeWritable(output);
+        std::vector<std::string> temporaries{temporaryPathFor(output)};
+        for (const std::string* t : {&reportPath, &tracePath})
+            if (!t->empty()) temporaries.push_back(temporaryPathFor(*t));
+        Watchdog watchdog(temporaries);
+        const bool showBar = writer && !quiet && ::isatty(STDERR_FILENO);
+        RunProgress progress(showBar ? &bar : nullptr);
+        Result res = out.mpi ? out.mpi->simplifyFile(input, opt, &progress) : simplifyFile(input, opt, &progress);
+        bar.clear();
+        if (gSignal.load()) throw Cancelled("interrupted");
+        const Report& r = res.report;
+        if (!writer) {
+            if (done) *done = r;  // the next frames' iso-value, as on rank 0
+            return 0;
+        }
+        if (r.isoDefaulted && !quiet && p.frame < 0)
+            std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
+                         r.gridClass.c_str(), r.grid.c_str(), r.iso);
+        else if (r.isoDefaulted && !quiet)
+            std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': iso-value %g (the midpoint of its value range) from frame %d, used for every frame\n",
+                         r.gridClass.c_str(), r.grid.c_str(), r.iso, p.frame);
+        WriteOptions wo;
+        wo.ascii = out.ascii;
+        wo.normals = out.normals;
+        wo.objectName = r.grid;
+        wo.comment = "vdb_isosimp grid " + r.grid;
+        writeMesh(res.mesh, output, wo);
+        if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
+        if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
+        if (!quiet)
+            std::fprintf(stderr, "vdb_isosimp: %s, grid '%s': %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
+                         input.c_str(), r.grid.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
+                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
+        if (done) *done = r;
+        return 0;
+    } catch (const MemoryBudgetError& e) {
+        bar.clear();
+        std::cerr << who << e.what() << " (--ratio, --faces, --batch, --max-memory)\n";
+        return 1;
+    } catch (const EmptySurfaceError& e) {
+        bar.clear();
+        std::cerr << who << e.what() << "\n";
+        return 3;
+    } catch (const Cancelled&) {
+        bar.clear();
+        std::cerr << "vdb_isosimp: interrupted\n";
+        const int sig = gSignal.load();
+        return 128 + (sig ? sig : SIGINT);
+    } catch (const std::exception& e) {
+        bar.clear();
+        std::cerr << who << e.what() << "\n";
+        return 1;
+    }
+}
+
+// Every frame with the same settings: a fog grid's default iso-value comes from the first frame meshed
+// and is given to the others, so the frames' surfaces match. A failed frame is one line and the rest
+// still run; the exit code is 1 if any failed (an interruption stops the whole sequence).
+int meshSequence(const std::string& input, const FramePattern& out, const std::optional<FramePattern>& report,
+                 const std::optional<FramePattern>& trace, const std::vector<Frame>& frames, Options opt,
+                 const OutputChoices& choices)
+{
+    int failed = 0;
+    for (const Frame& f : frames) {
+        const RunPaths p{f.path, out.path(f.number), report ? report->path(f.number) : "",
+                         trace ? trace->path(f.number) : "", f.number};
+        TerminalProgress bar;  // a frame's own clock: the time left is the frame's
+        Report r;
+        const int code = meshOne(p, opt, choices, bar, &r);
+        if (code >= 128) return code;
+        if (code != 0) ++failed;
+        else if (!opt.iso) opt.iso = r.iso;  // level sets too: 0 then, the same for every frame
+    }
+    if (!choices.quiet)
+        std::fprintf(stderr, "vdb_isosimp: %s: %zu of %zu frames meshed\n", input.c_str(),
+                     frames.size() - size_t(failed), frames.size());
+    return failed ? 1 : 0;
+}
+
+// A usage error: one line, exit code 2.
+int usageError(const std::string& what)
+{
+    std::cerr << "vdb_isosimp: " << what << " (see --help)\n";
+    return 2;
+}
+
+// "A-B" or "A" (frame numbers >= 0).
+bool parseFrameRange(const std::string& text, int& first, int& last)
+{
+    const size_t dash = text.find('-', 1);
+    const auto number = [](const std::string& t, int& v) {
+        if (t.empty() || t.size() > 9 || t.find_first_not_of("0123456789") != std::string::npos) return false;
+        v = std::stoi(t);
+        return true;
+    };
+    if (dash == std::string::npos) return number(text, first) && number(text, last);
+    return number(text.substr(0, dash), first) && number(text.substr(dash + 1), last) && first <= last;
+}
+
 } // namespace
 
 int main(int argc, char** argv)
@@ -267,13 +395,19 @@ int main(int argc, char** argv)
     double iso = 0.0;
     bool quiet = false, normals = false, ascii = false;
 
-    app.add_option("input", input, "Input .vdb file")->required();
+    app.add_option("input", input,
+                   "Input .vdb file, or a frame sequence: a run of # (smoke.####.vdb, Houdini's $F4) or a printf\n"
+                   "number (smoke.%04d.vdb) in the file name; then -o (and --report, --trace) need a frame\n"
+                   "pattern too, and every frame is meshed with the same settings (a fog grid's default\n"
+                   "iso-value is taken from the first frame)")
+        ->required();
     app.add_option("-o,--output", output,
                    "Output mesh: .ply, .obj, .stl or .glb (by extension). Default: <input stem>.ply in the\n"
                    "current directory");
     app.add_flag("--normals", normals, "Add area-weighted vertex normals (PLY, OBJ, glTF; STL always has face normals)");
     app.add_flag("--ascii", ascii, "Write ASCII PLY instead of binary (.ply only)");
-    app.add_option("--grid", opt.gridName, "Grid to mesh. Default: the first float or double grid");
+    app.add_option("--grid", opt.gridName, "Grid to mesh (float or double). Default: the first level-set grid of the file, else the grid\n"
+                   "named density, else the first float or double grid");
     auto* isoOpt = app.add_option("--iso", iso,
                                   "Iso-value. Default: 0 for level sets (inside: value < iso); for fog and other\n"
                                   "grids (inside: value > iso) the midpoint of the value range, which is printed");
@@ -303,6 +437,13 @@ int main(int argc, char** argv)
                    "uncontractible,target,slab (for plots of the intermediate mesh size; faces_generated counts\n"
                    "per slab, the last row is the final pass over the merged slabs)");
     app.add_flag("-q,--quiet", quiet, "Print errors only (no progress bar, no summary)");
+    std::string framesText;
+    auto* framesOpt = app.add_option("--frames", framesText,
+                                     "Frames A-B (or one frame A) of a frame sequence; missing files in the range are errors.\n"
+                                     "Default: every frame whose file exists in the input's folder");
+    auto* minComponentOpt = app.add_option("--min-component", opt.minComponentArea,
+                                           "Drop closed components whose area is below A world units squared (floaters),\n"
+                                           "after the final decimation; the report counts them (components_pruned)");
     std::string maxMemory = "machine";
     app.add_option("--max-memory", maxMemory,
                    "Refuse to start when the estimated peak memory (from the grid's topology, before any voxel\n"
@@ -324,7 +465,12 @@ int main(int argc, char** argv)
         std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
         return 2;
     }
-    if (output.empty()) output = stemOf(input) + ".ply";
+    if (*minComponentOpt && !(opt.minComponentArea > 0.0 && std::isfinite(opt.minComponentArea)))  // NaN, inf
+        return usageError("--min-component must be a finite area greater than 0");
+    int firstFrame = 0, lastFrame = 0;
+    if (*framesOpt && !parseFrameRange(framesText, firstFrame, lastFrame))
+        return usageError("--frames: '" + framesText + "' is not a frame range A-B with A <= B (e.g. 1-100), or one frame");
+    if (output.empty()) output = stemOf(input) + ".ply";  // a sequence's stem keeps its pattern
     // Checked by the pipeline on the grid it opens (opening it here too cost a second topology read).
     if (maxMemory == "machine") opt.maxMemoryBytes = machineMemoryBytes();
     else if (!parseMemorySize(maxMemory, opt.maxMemoryBytes)) {
@@ -340,53 +486,31 @@ int main(int argc, char** argv)
         }
     }
 
-    TerminalProgress bar;
+    const OutputChoices choices{ascii, normals, quiet, mpi.get()};
+    const std::optional<FramePattern> inPattern = parseFramePattern(input), outPattern = parseFramePattern(output);
+    if (!inPattern) {
+        if (*framesOpt) return usageError("--frames: '" + input + "' is not a frame sequence (put # or %04d in its file name)");
+        if (outPattern) return usageError("-o '" + output + "' names a frame sequence but the input '" + input + "' does not");
+        TerminalProgress bar;
+        return meshOne({input, output, reportPath, tracePath}, opt, choices, bar, nullptr);
+    }
+    if (!outPattern) return usageError("the input '" + input + "' is a frame sequence: -o needs a frame pattern too (# or %04d), got '" + output + "'");
+    std::optional<FramePattern> reportPattern, tracePattern;
+    for (auto [path, pattern, flag] : {std::make_tuple(&reportPath, &reportPattern, "--report"), std::make_tuple(&tracePath, &tracePattern, "--trace")}) {
+        if (path->empty()) continue;
+        *pattern = parseFramePattern(*path);
+        if (!*pattern) return usageError(std::string(flag) + " '" + *path + "': a frame sequence writes one file per frame, so it needs a frame pattern (# or %04d)");
+    }
+    std::vector<Frame> frames;
     try {
-        formatForPath(output, ascii);  // an unsupported extension fails before the long run
-        if (writer) probeWritable(output);
-        std::vector<std::string> temporaries{temporaryPathFor(output)};
-        for (const std::string* p : {&reportPath, &tracePath})
-            if (!p->empty()) temporaries.push_back(temporaryPathFor(*p));
-        Watchdog watchdog(temporaries);
-        const bool showBar = writer && !quiet && ::isatty(STDERR_FILENO);
-        RunProgress progress(showBar ? &bar : nullptr);
-        Result res = mpi ? mpi->simplifyFile(input, opt, &progress) : simplifyFile(input, opt, &progress);
-        bar.clear();
-        if (gSignal.load()) throw Cancelled("interrupted");
-        if (!writer) return 0;
-        const Report& r = res.report;
-        if (r.isoDefaulted && !quiet)
-            std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
-                         r.gridClass.c_str(), r.grid.c_str(), r.iso);
-        WriteOptions wo;
-        wo.ascii = ascii;
-        wo.normals = normals;
-        wo.objectName = r.grid;
-        wo.comment = "vdb_isosimp grid " + r.grid;
-        writeMesh(res.mesh, output, wo);
-        if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
-        if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
-        if (!quiet)
-            std::fprintf(stderr, "vdb_isosimp: %s: %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
-                         input.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
-                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
-        return 0;
-    } catch (const MemoryBudgetError& e) {
-        bar.clear();
-        std::cerr << "vdb_isosimp: " << e.what() << " (--ratio, --faces, --batch, --max-memory)\n";
-        return 1;
-    } catch (const EmptySurfaceError& e) {
-        bar.clear();
-        std::cerr << "vdb_isosimp: " << e.what() << "\n";
-        return 3;
-    } catch (const Cancelled&) {
-        bar.clear();
-        std::cerr << "vdb_isosimp: interrupted\n";
-        const int sig = gSignal.load();
-        return 128 + (sig ? sig : SIGINT);
+        frames = *framesOpt ? framePaths(*inPattern, firstFrame, lastFrame) : framePaths(*inPattern);
     } catch (const std::exception& e) {
-        bar.clear();
-        std::cerr << "vdb_isosimp: " << e.what() << "\n";
+        std::cerr << "vdb_isosimp: " << input << ": " << e.what() << "\n";
         return 1;
     }
+    if (frames.empty()) {
+        std::cerr << "vdb_isosimp: " << input << ": no file matches the frame pattern\n";
+        return 1;
+    }
+    return meshSequence(input, *outPattern, reportPattern, tracePattern, frames, opt, choices);
 }

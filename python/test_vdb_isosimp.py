@@ -98,6 +98,13 @@ class ModuleMatchesProgram(unittest.TestCase):
         self.check_same(make_volume("noise", 48), ["--iso", "0.2", "--faces", "3000", "-b", "5000", "-j", "1"],
                         iso=0.2, faces=3000, batch=5000, threads=1)
 
+    def test_min_component(self):
+        _, _, r, _ = self.check_same(make_volume("noise", 48), ["--iso", "0.2", "--min-component", "5"],
+                                     iso=0.2, min_component=5.0)
+        self.assertGreater(r["components_pruned"], 0)
+        with self.assertRaises(vdb_isosimp.InputError):
+            vdb_isosimp.simplify(make_volume("noise", 48), min_component=float("nan"))
+
     def test_pathlike_and_grid_name(self):
         import pathlib
         vdb = make_volume("sphere", 40)
@@ -163,6 +170,26 @@ class Behaviour(unittest.TestCase):
 
         with self.assertRaises(KeyError):
             vdb_isosimp.simplify(vdb, progress=boom)
+
+    def test_frame_paths_match_the_program(self):
+        folder = os.path.join(TMP, "frames")
+        os.makedirs(folder)
+        vdb = make_volume("sphere", 40)
+        for frame in (1, 2, 5):
+            with open(vdb, "rb") as a, open(os.path.join(folder, "f.%04d.vdb" % frame), "wb") as b:
+                b.write(a.read())
+        with open(os.path.join(folder, "f.05.vdb"), "wb"):
+            pass  # not a frame of f.####.vdb
+        pattern = os.path.join(folder, "f.####.vdb")
+        frames = vdb_isosimp.frame_paths(pattern)
+        self.assertEqual(frames, [(f, os.path.join(folder, "f.%04d.vdb" % f)) for f in (1, 2, 5)])
+        self.assertEqual(vdb_isosimp.frame_paths(os.path.join(folder, "f.%04d.vdb"), first=2), frames[1:])
+        self.assertEqual([f for f, _ in vdb_isosimp.frame_paths(pattern, 4, 6)], [4, 5, 6])
+        with self.assertRaises(vdb_isosimp.InputError):
+            vdb_isosimp.frame_paths(os.path.join(folder, "f.0001.vdb"))
+        # The program meshes exactly those frames.
+        subprocess.run([ARGS.program, pattern, "-q", "-o", os.path.join(folder, "m.%d.ply")], check=True)
+        self.assertEqual(sorted(n for n in os.listdir(folder) if n.endswith(".ply")), ["m.1.ply", "m.2.ply", "m.5.ply"])
 
     def test_formats(self):
         v, f, _ = vdb_isosimp.simplify(make_volume("sphere", 40))

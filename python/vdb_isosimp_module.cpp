@@ -6,6 +6,7 @@
 //     # vertices: float32 (N, 3) world positions; faces: uint32 (M, 3), counter-clockwise from outside
 #include "pyopenvdb_grid.h"
 
+#include "vdb_isosimp/frame_sequence.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
 #include <pybind11/numpy.h>
@@ -94,7 +95,7 @@ private:
 };
 
 py::tuple simplify(py::object source, const std::string& grid, std::optional<double> iso, double ratio,
-                   uint64_t faces, uint64_t batch, int threads, py::object progress)
+                   uint64_t faces, uint64_t batch, int threads, py::object progress, double minComponent)
 {
     Options o;
     o.gridName = grid;
@@ -103,6 +104,7 @@ py::tuple simplify(py::object source, const std::string& grid, std::optional<dou
     o.targetFaces = faces;
     o.batchFaces = batch;
     o.threads = threads;
+    o.minComponentArea = minComponent;
 
     std::optional<std::string> path;
     openvdb::GridBase::ConstPtr vdbGrid;
@@ -158,6 +160,16 @@ void writeMeshPy(const std::string& path, py::array_t<float, py::array::c_style 
     writeMesh(m, path, w);
 }
 
+// The frames a sequence pattern names, by the program's rule (frame_sequence.h).
+py::list framePathsPy(const std::string& pattern, std::optional<int> first, std::optional<int> last)
+{
+    const std::optional<FramePattern> p = parseFramePattern(pattern);
+    if (!p) throw InputError(pattern + ": not a frame pattern (no run of # or printf number such as %04d in the file name)");
+    py::list out;
+    for (const Frame& f : framePaths(*p, first, last)) out.append(py::make_tuple(f.number, f.path));
+    return out;
+}
+
 } // namespace
 
 PYBIND11_MODULE(vdb_isosimp, m)
@@ -175,21 +187,35 @@ PYBIND11_MODULE(vdb_isosimp, m)
 
     m.def("simplify", &simplify, py::arg("source"), py::kw_only(), py::arg("grid") = "",
           py::arg("iso") = py::none(), py::arg("ratio") = 0.2, py::arg("faces") = 0, py::arg("batch") = 100000,
-          py::arg("threads") = 0, py::arg("progress") = py::none(),
+          py::arg("threads") = 0, py::arg("progress") = py::none(), py::arg("min_component") = 0.0,
           R"doc(Extract and simplify the iso-surface of a scalar OpenVDB grid.
 
 source   path of a .vdb file (str or os.PathLike), or a pyopenvdb FloatGrid/DoubleGrid (read only)
-grid     grid to mesh in the file; '' = the first float or double grid (ignored for a grid object)
+grid     grid to mesh in the file; '' = the first level set, else 'density', else the first float or
+         double grid (ignored for a grid object)
 iso      iso-value; None = 0 for level sets, the midpoint of the value range for other grids
 ratio    decimation rate in (0, 1]: faces kept / faces of the full-resolution surface (default 0.2)
 faces    if > 0: keep this many faces instead of `ratio`
 batch    faces extracted between two decimations (default 100000)
 threads  worker threads, 0 = all cores; the result does not depend on it
 progress callable(fraction, faces_kept); returning False cancels (raises Cancelled)
+min_component  if > 0: drop closed components of smaller area (world units squared) after the
+         final pass; report['components_pruned'] counts them
 
 Returns (vertices float32 (N, 3), faces uint32 (M, 3), report dict). Raises InputError (a
 ValueError) for bad input, EmptySurfaceError (a ValueError) when the iso-value cuts nothing,
 Cancelled when stopped; Ctrl-C stops a run too.)doc");
+
+    m.def("frame_paths", &framePathsPy, py::arg("pattern"), py::arg("first") = py::none(),
+          py::arg("last") = py::none(),
+          R"doc(The frames of a sequence, as the program finds them: [(frame, path)] in frame order.
+
+pattern  a path whose file name holds a run of # (smoke.####.vdb, zero-padded to the run's length)
+         or a printf number (smoke.%04d.vdb, %d)
+first, last  with both: every frame of the range, whether its file exists or not; otherwise the
+         existing files the pattern names in its folder, within the bound given
+
+Raises InputError (a ValueError) for a path without a pattern or a folder that cannot be listed.)doc");
 
     m.def("write_mesh", &writeMeshPy, py::arg("path"), py::arg("vertices"), py::arg("faces"), py::kw_only(),
           py::arg("normals") = false, py::arg("ascii") = false, py::arg("name") = "", py::arg("comment") = "",

@@ -25,13 +25,15 @@ done
 verts=$(sed -n 's/.*"verts_out": \([0-9]*\).*/\1/p' "$work/report.json")
 faces=$(sed -n 's/.*"faces_out": \([0-9]*\).*/\1/p' "$work/report.json")
 echo "vdb_isosimp: $verts vertices, $faces faces (iso $iso, ratio $ratio)"
+# A 3-frame sequence of copies, for the add-on's sequence import.
+for f in 1 2 3; do cp "$work/noise.vdb" "$work/seq.000$f.vdb"; done
 
 # Blender reads add-ons and preferences from these folders: keep the user's own untouched.
 export BLENDER_USER_SCRIPTS="$work/scripts" BLENDER_USER_CONFIG="$work/config"
 export VDB_ISOSIMP_PYTHONPATH="$build/python" VDB_ISOSIMP_EXE="$build/vdb_isosimp"
 blender -b --factory-startup --python-exit-code 1 --python "$src/examples/blender/test_blender_import.py" -- \
   --addon "$src/examples/blender/io_import_vdb_isosimp.py" --vdb "$work/noise.vdb" --iso $iso --ratio $ratio \
-  --verts "$verts" --faces "$faces" \
+  --verts "$verts" --faces "$faces" --sequence "$work/seq.0001.vdb" --sequence-frames 3 \
   --ply "$work/noise.ply" --obj "$work/noise.obj" --glb "$work/noise.glb" --stl "$work/noise.stl" 2>&1 |
   grep -v "^Read prefs\|^Warning: Unable to open\|^$" | tee "$work/blender.log"
 status=${PIPESTATUS[0]}

@@ -2,9 +2,14 @@
 // exit code and no output file; good input gives the mesh, the summary and the JSON report, byte for
 // byte the same for any thread count.
 #include "test_grids.h"
+#include "mesh_io.h"
+#include "mesh_stats.h"
+#include "surface_checks.h"
+#include "vdb_isosimp/frame_sequence.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
+#include <openvdb/tools/Composite.h>
 
 #include "test_files.h"
 
@@ -217,6 +222,189 @@ TEST(Cli, HelpExplainsEveryOption)
     const std::string cmd = std::string("'") + VDB_ISOSIMP_EXE + "' --help > '" + d + "/help.txt'";
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     const std::string help = slurp(d + "/help.txt");
-    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet"})
+    for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet",
+                            "--frames", "--min-component", "smoke.####.vdb", "density"})
         EXPECT_NE(help.find(opt), std::string::npos) << opt;
+}
+
+// Issue 17: which grid a file is meshed by default, frame sequences and floater pruning.
+namespace {
+
+// A small level-set sphere named `name` (class `levelSet`, else the same values as a fog-like grid).
+openvdb::FloatGrid::Ptr namedSphere(const std::string& name, bool levelSet, float radius = 6.0f)
+{
+    openvdb::initialize();
+    auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(radius, openvdb::Vec3f(0), 0.5f);
+    g->setName(name);
+    if (!levelSet) g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    return g;
+}
+
+// Removes the meshes and reports of earlier runs, before runs that must leave none.
+void removeOutputs(const std::string& dir)
+{
+    std::system(("cd '" + dir + "' && rm -f *.ply *.json").c_str());
+}
+
+// A text value of a JSON report.
+std::string reportText(const std::string& json, const std::string& key)
+{
+    const auto at = json.find("\"" + key + "\": \"");
+    if (at == std::string::npos) return "";
+    const auto start = at + key.size() + 5;
+    return json.substr(start, json.find('"', start) - start);
+}
+
+uint64_t reportInteger(const std::string& json, const std::string& key)
+{
+    const auto at = json.find("\"" + key + "\": ");
+    return at == std::string::npos ? UINT64_MAX : std::stoull(json.substr(at + key.size() + 4));
+}
+
+// A 5-frame sequence f.0001.vdb ... f.0005.vdb of fog spheres growing frame by frame.
+void writeSequence(const std::string& dir, const std::vector<int>& frames)
+{
+    for (int f : frames) {
+        char name[32];
+        std::snprintf(name, sizeof name, "/f.%04d.vdb", f);
+        openvdb::io::File(dir + name).write({namedSphere("density", false, 5.0f + float(f))});
+    }
+}
+
+} // namespace
+
+TEST(CliDefaultGrid, DensityBeforeAnEarlierColourChannel)
+{
+    const auto d = freshDir("default_density");
+    auto colour = namedSphere("color.x", false);
+    auto density = namedSphere("density", false, 8.0f);
+    openvdb::io::File(d + "/smoke.vdb").write({colour, density});
+    const RunResult r = run(d, "smoke.vdb --report r.json -o out.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(reportText(slurp(d + "/r.json"), "grid"), "density");
+    EXPECT_NE(r.err.find("grid 'density'"), std::string::npos) << "the summary names the grid: " << r.err;
+}
+
+TEST(CliDefaultGrid, LevelSetBeforeAnEarlierFog)
+{
+    const auto d = freshDir("default_levelset");
+    openvdb::io::File(d + "/both.vdb").write({namedSphere("density", false), namedSphere("surface", true, 8.0f)});
+    const RunResult r = run(d, "both.vdb --report r.json -o out.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string json = slurp(d + "/r.json");
+    EXPECT_EQ(reportText(json, "grid"), "surface");
+    EXPECT_EQ(reportText(json, "grid_class"), "level set");
+}
+
+TEST(CliDefaultGrid, OnlyGridWhateverItsName)
+{
+    const auto d = freshDir("default_only");
+    auto vel = openvdb::Vec3SGrid::create();
+    vel->setName("vel");
+    vel->tree().setValue(openvdb::Coord(0), openvdb::Vec3s(1, 0, 0));
+    openvdb::io::File(d + "/t.vdb").write({vel, namedSphere("temperature", false)});
+    const RunResult r = run(d, "t.vdb --report r.json -o out.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(reportText(slurp(d + "/r.json"), "grid"), "temperature");
+    removeOutputs(d);
+    // Naming the vector grid: one line saying which grids can be meshed.
+    expectCleanFailure(run(d, "t.vdb --grid vel -o out.ply"), 1,
+                       "t.vdb: grid 'vel' has value type vec3s; only float and double grids can be meshed (float/double grids: temperature)", d);
+    expectCleanFailure(run(d, "t.vdb --grid density -o out.ply"), 1, "t.vdb: no grid named 'density' (grids: ", d);
+}
+
+TEST(CliFrames, SequenceWritesAMeshAndAReportPerFrame)
+{
+    const auto d = freshDir("frames");
+    writeSequence(d, {1, 2, 3, 4, 5});
+    const RunResult r = run(d, "f.####.vdb -o m.####.ply --report r.####.json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::string isoOfFrame1;
+    for (int f = 1; f <= 5; ++f) {
+        char mesh[32], report[32];
+        std::snprintf(mesh, sizeof mesh, "/m.%04d.ply", f);
+        std::snprintf(report, sizeof report, "/r.%04d.json", f);
+        EXPECT_TRUE(exists(d + mesh)) << mesh;
+        const std::string json = slurp(d + report);
+        EXPECT_NE(json.find(std::string("\"output\": \"m.") + (mesh + 3)), std::string::npos) << json;
+        // One iso-value for every frame: the first frame's default.
+        const std::string iso = json.substr(json.find("\"iso\": "), 25);
+        if (f == 1) isoOfFrame1 = iso;
+        EXPECT_EQ(iso, isoOfFrame1) << "frame " << f;
+    }
+    EXPECT_NE(r.err.find("from frame 1, used for every frame"), std::string::npos) << r.err;
+    for (int f = 1; f <= 5; ++f) EXPECT_NE(r.err.find("f.000" + std::to_string(f) + ".vdb, grid 'density'"), std::string::npos) << r.err;
+    // A printf pattern names the same files; --frames picks a range.
+    ASSERT_EQ(run(d, "f.%04d.vdb -o p.%d.ply --frames 2-3 -q").code, 0);
+    EXPECT_TRUE(exists(d + "/p.2.ply") && exists(d + "/p.3.ply"));
+    EXPECT_FALSE(exists(d + "/p.1.ply") || exists(d + "/p.4.ply"));
+    EXPECT_EQ(slurp(d + "/p.2.ply"), slurp(d + "/m.0002.ply"));
+}
+
+TEST(CliFrames, MissingFrameIsOneLineAndTheOthersStillRun)
+{
+    const auto d = freshDir("frames_missing");
+    writeSequence(d, {1, 2, 4, 5});
+    const RunResult r = run(d, "f.%04d.vdb -o m.%04d.ply --frames 1-5 -q");
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_EQ(r.err, "vdb_isosimp: frame 3: f.0003.vdb: cannot open file for reading (missing or unreadable)\n");
+    for (int f : {1, 2, 4, 5}) EXPECT_TRUE(exists(d + "/m.000" + std::to_string(f) + ".ply")) << f;
+    EXPECT_FALSE(exists(d + "/m.0003.ply"));
+    // A damaged frame too.
+    std::ofstream(d + "/f.0003.vdb") << "not a volume";
+    const RunResult damaged = run(d, "f.%04d.vdb -o n.%04d.ply -q");
+    EXPECT_EQ(damaged.code, 1);
+    EXPECT_EQ(std::count(damaged.err.begin(), damaged.err.end(), '\n'), 1) << damaged.err;
+    EXPECT_NE(damaged.err.find("frame 3: f.0003.vdb: not a readable OpenVDB file"), std::string::npos) << damaged.err;
+    EXPECT_TRUE(exists(d + "/n.0005.ply"));
+}
+
+TEST(CliFrames, PatternOnOneSideOnlyIsAUsageError)
+{
+    const auto d = freshDir("frames_usage");
+    writeSequence(d, {1, 2});
+    const struct {
+        const char* args;
+        int code;
+        const char* says;
+    } cases[] = {
+        {"f.####.vdb -o m.ply", 2, "-o needs a frame pattern too"},
+        {"f.0001.vdb -o m.####.ply", 2, "names a frame sequence but the input 'f.0001.vdb' does not"},
+        {"f.####.vdb -o m.####.ply --report r.json", 2, "--report 'r.json'"},
+        {"f.0001.vdb -o m.ply --frames 1-2", 2, "--frames: 'f.0001.vdb' is not a frame sequence"},
+        {"f.####.vdb -o m.####.ply --frames 2-1", 2, "--frames: '2-1'"},
+        {"f.####.vdb -o m.####.ply --frames x", 2, "--frames: 'x'"},
+        {"g.####.vdb -o m.####.ply", 1, "g.####.vdb: no file matches the frame pattern"},
+    };
+    for (const auto& c : cases) expectCleanFailure(run(d, c.args), c.code, c.says, d);
+}
+
+TEST(CliPrune, MinComponentKeepsTheBigSphereOnly)
+{
+    const auto d = freshDir("prune");
+    openvdb::initialize();
+    auto big = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(20.0f, openvdb::Vec3f(0), 0.5f, 3.0f);
+    const openvdb::Vec3f centres[] = {{40, 0, 0}, {-40, 0, 0}, {0, 40, 0}, {0, 0, -40}};
+    for (const auto& c : centres)
+        openvdb::tools::csgUnion(*big, *openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(2.5f, c, 0.5f, 3.0f));
+    big->setName("spheres");
+    openvdb::io::File(d + "/spheres.vdb").write({big});
+    // Areas: the big sphere about 4 pi 20^2 = 5027, the small ones about 79.
+    ASSERT_EQ(run(d, "spheres.vdb -q -o all.ply --report all.json").code, 0);
+    const RunResult r = run(d, "spheres.vdb -q --min-component 500 -o big.ply --report big.json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(reportInteger(slurp(d + "/all.json"), "components_pruned"), 0u);
+    EXPECT_EQ(reportInteger(slurp(d + "/big.json"), "components_pruned"), 4u);
+    const vdb_isosimp::Mesh all = vdb_isosimp::eval::readMesh(d + "/all.ply"), kept = vdb_isosimp::eval::readMesh(d + "/big.ply");
+    EXPECT_EQ(vdb_isosimp::eval::computeMeshStats(all).components, 5u);
+    const vdb_isosimp::eval::MeshStats s = vdb_isosimp::eval::computeMeshStats(kept);
+    EXPECT_EQ(s.components, 1u);
+    EXPECT_GT(s.area, 4500.0);
+    EXPECT_EQ(s.eulerCharacteristic, 2);
+    vt::expectClosedOutward(kept, false, "pruned");
+    removeOutputs(d);
+    // Bad values are usage errors; a minimum above every component leaves no surface.
+    for (const char* bad : {"0", "-1", "x", "nan"})
+        expectCleanFailure(run(d, std::string("spheres.vdb --min-component ") + bad + " -o bad.ply"), 2, "--min-component", d);
+    expectCleanFailure(run(d, "spheres.vdb --min-component 1e6 -o bad.ply"), 3, "every component of the surface in grid 'spheres' has an area below 1e+06", d);
 }

@@ -54,6 +54,27 @@ TEST(Decimator, ClosedTetrahedraAreRefusedOnceNotAtEveryPass)
     EXPECT_EQ(d.collapseAttempts(), 600u);
 }
 
+TEST(Decimator, PruneRemovesComponentsBelowAnAreaAndDropKeepsTheLargest)
+{
+    // Five tetrahedra of area 2.37; the first scaled up 10 times (area 237).
+    BlockMesh b = tetrahedra(5);
+    for (int k = 1; k < 4; ++k)
+        for (double& c : b.positions[size_t(k)]) c *= 10.0;
+    Decimator prune;
+    prune.addBlock(b);
+    EXPECT_EQ(prune.pruneComponents(2.0), 0u);
+    EXPECT_EQ(prune.pruneComponents(100.0), 4u);
+    EXPECT_EQ(prune.faceCount(), 4u);
+    EXPECT_EQ(prune.vertexCount(), 4u);
+    EXPECT_EQ(prune.mesh().points[1][0], 10.0f);  // the big one is the one kept
+    // The same walk serves the face-target clean-up, which never removes the largest component.
+    Decimator drop;
+    drop.addBlock(b);
+    EXPECT_EQ(drop.dropSmallComponents(0), 4u);
+    EXPECT_EQ(drop.faceCount(), 4u);
+    EXPECT_EQ(drop.mesh().points[1][0], 10.0f);
+}
+
 TEST(Decimator, OctahedronShrinksToATetrahedronAndStopsThere)
 {
     // A closed octahedron: collapses are legal until the tetrahedron, the smallest closed surface.

@@ -5,6 +5,11 @@
 # when the module cannot be imported, by running the vdb_isosimp program. The mesh keeps the grid's
 # world coordinates, as Blender's own volume import does, so it lies exactly on the volume.
 #
+# Frame sequences: a file name with a frame pattern (smoke.####.vdb or smoke.%04d.vdb, typed in the file
+# browser), or any numbered file with "Sequence" ticked (smoke.0001.vdb stands for smoke.####.vdb), imports
+# every frame the pattern names as one object per frame, keyed to be visible on its frame only. The
+# frames are found and named by the library's rule (vdb_isosimp.frame_paths, or the program itself).
+#
 # Install: Edit > Preferences > Add-ons > Install... and pick this file. Where the module or program
 # live outside the default paths, set them in the add-on's preferences, or in the environment:
 # VDB_ISOSIMP_PYTHONPATH (folder holding vdb_isosimp.cpython-*.so) and VDB_ISOSIMP_EXE (the program).
@@ -21,6 +26,7 @@ bl_info = {
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -97,6 +103,73 @@ def run_program(program, path, grid, iso, ratio):
             return verts, faces, json.load(f)
 
 
+def is_frame_pattern(path):
+    """True when the file name holds a frame pattern: a run of # or a printf number (%d, %04d)."""
+    name = os.path.basename(path)
+    return "#" in name or re.search(r"(?<!%)%0?\d*d", name) is not None
+
+
+def sequence_pattern(path):
+    """The pattern of the sequence a numbered file belongs to: its last run of digits becomes as many #."""
+    folder, name = os.path.split(path)
+    digits = list(re.finditer(r"\d+", name))
+    if not digits:
+        return None
+    d = digits[-1]
+    return os.path.join(folder, name[:d.start()] + "#" * len(d.group()) + name[d.end():])
+
+
+def run_program_sequence(program, pattern, grid, iso, ratio):
+    """Every frame of a sequence in one run of the program: [(frame, verts, faces, report)] and the
+    error lines of the frames that failed."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [program, pattern, "-q", "-o", os.path.join(tmp, "m.%d.ply"), "--report",
+               os.path.join(tmp, "r.%d.json"), "--ratio", repr(ratio)]
+        if grid:
+            cmd += ["--grid", grid]
+        if iso is not None:
+            cmd += ["--iso", repr(iso)]
+        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        if done.returncode not in (0, 1):
+            raise RuntimeError(done.stderr.strip() or "vdb_isosimp failed with exit code %d" % done.returncode)
+        frames = []
+        for name in os.listdir(tmp):
+            m = re.fullmatch(r"m\.(\d+)\.ply", name)
+            if m:
+                verts, faces = read_binary_ply(os.path.join(tmp, name))
+                with open(os.path.join(tmp, "r.%s.json" % m.group(1))) as f:
+                    frames.append((int(m.group(1)), verts, faces, json.load(f)))
+        errors = done.stderr.strip().splitlines()
+        if not frames:
+            raise RuntimeError(errors[0] if errors else "no frame was imported")
+        return sorted(frames, key=lambda f: f[0]), errors
+
+
+def run_module_sequence(module, pattern, grid, iso, ratio):
+    """Every frame of a sequence through the module, with the settings the program uses: a default
+    iso-value comes from the first frame meshed and is given to the others."""
+    frames, errors = [], []
+    for number, path in module.frame_paths(pattern):
+        try:
+            verts, faces, report = module.simplify(path, grid=grid, iso=iso, ratio=ratio)
+        except Exception as e:  # one frame's failure leaves the others
+            errors.append("frame %d: %s" % (number, e))
+            continue
+        iso = report["iso"] if iso is None else iso
+        frames.append((number, verts, faces, report))
+    if not frames:
+        raise RuntimeError(errors[0] if errors else "%s: no file matches the frame pattern" % pattern)
+    return frames, errors
+
+
+def show_only_on(obj, frame):
+    """Keys the object's visibility so that it shows on `frame` only (boolean keys hold until the next)."""
+    for f, hidden in ((frame - 1, True), (frame, False), (frame + 1, True)):
+        obj.hide_viewport = obj.hide_render = hidden
+        obj.keyframe_insert("hide_viewport", frame=f)
+        obj.keyframe_insert("hide_render", frame=f)
+
+
 def make_object(context, name, verts, faces):
     """A mesh object from vertex and triangle arrays, linked to the active collection and selected."""
     nv, nf = len(verts), len(faces)
@@ -129,7 +202,7 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
     filename_ext = ".vdb"
     filter_glob: StringProperty(default="*.vdb", options={"HIDDEN"})
 
-    grid: StringProperty(name="Grid", description="Grid to mesh; empty: the first float or double grid",
+    grid: StringProperty(name="Grid", description="Grid to mesh; empty: the first level set, else density, else the first float grid",
                          default="")
     auto_iso: BoolProperty(name="Automatic iso-value",
                            description="0 for level sets, the midpoint of the value range for fog volumes",
@@ -138,6 +211,10 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
                        default=0.0, precision=4)
     ratio: FloatProperty(name="Ratio", description="Faces kept / faces of the full-resolution surface",
                          default=0.2, min=0.0001, max=1.0, precision=4)
+    sequence: BoolProperty(name="Sequence",
+                           description="Import every frame of the sequence the file belongs to "
+                                       "(smoke.0001.vdb: smoke.####.vdb), one object per frame visible on its frame",
+                           default=False)
     backend: EnumProperty(
         name="Run with",
         items=(("AUTO", "Automatic", "The Python module if it can be imported, else the program"),
@@ -153,34 +230,35 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
         row.enabled = not self.auto_iso
         row.prop(self, "iso")
         layout.prop(self, "ratio")
+        layout.prop(self, "sequence")
         layout.prop(self, "backend")
 
     def execute(self, context):
         iso = None if self.auto_iso else self.iso
-        module = load_module() if self.backend in {"AUTO", "MODULE"} else None
+        pattern = self.filepath if is_frame_pattern(self.filepath) else None
+        if pattern is None and self.sequence:
+            pattern = sequence_pattern(self.filepath)
+            if pattern is None:
+                self.report({"ERROR"}, "%s: no frame number in the file name" % os.path.basename(self.filepath))
+                return {"CANCELLED"}
+        chosen = self.choose_backend()
+        if chosen is None:
+            return {"CANCELLED"}
+        used, runner = chosen
+        if pattern is not None:
+            return self.import_sequence(context, pattern, iso, used, runner)
         wm = context.window_manager
         try:
-            if module is not None:
+            if used == "module":
                 wm.progress_begin(0, 100)
                 try:
-                    verts, faces, report = module.simplify(
+                    verts, faces, report = runner.simplify(
                         self.filepath, grid=self.grid, iso=iso, ratio=self.ratio,
                         progress=lambda fraction, kept: wm.progress_update(int(100 * fraction)))
                 finally:
                     wm.progress_end()
-                used = "module"
-            elif self.backend == "MODULE":
-                self.report({"ERROR"}, "the vdb_isosimp Python module cannot be imported "
-                                       "(set its folder in the add-on preferences)")
-                return {"CANCELLED"}
             else:
-                program = find_program()
-                if not program:
-                    self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
-                                           "was found (set one in the add-on preferences)")
-                    return {"CANCELLED"}
-                verts, faces, report = run_program(program, self.filepath, self.grid, iso, self.ratio)
-                used = "program"
+                verts, faces, report = run_program(runner, self.filepath, self.grid, iso, self.ratio)
         except Exception as e:  # the library's errors are one readable line
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -191,6 +269,44 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
             obj["vdb_isosimp_" + key] = report[key]
         message = "%s: %d vertices, %d faces (%d at full resolution, iso %g) via the %s" % (
             name, len(obj.data.vertices), len(obj.data.polygons), report["faces_full"], report["iso"], used)
+        print("vdb_isosimp import:", message)
+        self.report({"INFO"}, message)
+        return {"FINISHED"}
+
+    def choose_backend(self):
+        """("module", the module) or ("program", its path); None once the reason neither is usable is reported."""
+        module = load_module() if self.backend in {"AUTO", "MODULE"} else None
+        if module is not None:
+            return "module", module
+        if self.backend == "MODULE":
+            self.report({"ERROR"}, "the vdb_isosimp Python module cannot be imported "
+                                   "(set its folder in the add-on preferences)")
+            return None
+        program = find_program()
+        if not program:
+            self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
+                                   "was found (set one in the add-on preferences)")
+            return None
+        return "program", program
+
+    def import_sequence(self, context, pattern, iso, used, runner):
+        run = run_module_sequence if used == "module" else run_program_sequence
+        try:
+            frames, errors = run(runner, pattern, self.grid, iso, self.ratio)
+        except Exception as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        for error in errors:
+            self.report({"WARNING"}, error)
+        for number, verts, faces, report in frames:
+            name = "%s.%04d" % (report.get("grid") or os.path.basename(pattern).split(".")[0], number)
+            obj = make_object(context, name, verts, faces)
+            obj["vdb_isosimp_frame"] = number
+            for key in ("iso", "ratio", "faces_full", "faces_out", "verts_out"):
+                obj["vdb_isosimp_" + key] = report[key]
+            show_only_on(obj, number)
+        message = "%s: %d frames (%d to %d), %d failed, iso %g, via the %s" % (
+            os.path.basename(pattern), len(frames), frames[0][0], frames[-1][0], len(errors), frames[0][3]["iso"], used)
         print("vdb_isosimp import:", message)
         self.report({"INFO"}, message)
         return {"FINISHED"}

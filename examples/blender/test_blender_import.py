@@ -2,6 +2,7 @@
 #   blender -b --factory-startup --python-exit-code 1 --python test_blender_import.py -- \
 #       --addon io_import_vdb_isosimp.py --vdb in.vdb --iso 0.2 --ratio 0.15 \
 #       --verts N --faces M --ply out.ply --obj out.obj --glb out.glb [--stl out.stl]
+#       [--sequence seq.0001.vdb --sequence-frames K]
 # Installs and enables the add-on, checks its File > Import entry, imports the .vdb through it (Python
 # module and program fallback), then imports the program's PLY, OBJ and glTF files with Blender's own
 # importers. Every import must give N vertices and M faces, the counts vdb_isosimp reported for the same
@@ -25,6 +26,8 @@ p.add_argument("--ply")
 p.add_argument("--obj")
 p.add_argument("--glb")
 p.add_argument("--stl")
+p.add_argument("--sequence", help="first file of a sequence of copies of --vdb (seq.0001.vdb, ...)")
+p.add_argument("--sequence-frames", type=int, default=0, help="how many frames the sequence has")
 args = p.parse_args(argv)
 
 failures = []
@@ -95,6 +98,28 @@ for backend in ("MODULE", "PROGRAM"):
     else:
         check("module and program give the same positions", np.array_equal(reference, co))
     check("object named after the grid", not obj.name.startswith("Mesh"), obj.name)
+
+# A frame sequence: one object per frame with the counts above, each visible on its own frame only;
+# picked as a numbered file with "Sequence" ticked (module) and as a pattern typed in (program).
+if args.sequence:
+    first = os.path.abspath(args.sequence)
+    pattern = os.path.join(os.path.dirname(first), "seq.####.vdb")
+    for backend, path, ticked in (("MODULE", first, True), ("PROGRAM", pattern, False)):
+        clear_scene()
+        result = bpy.ops.import_mesh.vdb_isosimp(filepath=path, ratio=args.ratio, backend=backend,
+                                                 sequence=ticked, **iso_kwargs)
+        what = "sequence via %s" % backend
+        check(what + " finished", result == {"FINISHED"}, str(result))
+        objs = imported_mesh_objects()
+        check(what + ": one object per frame", len(objs) == args.sequence_frames, "got %d" % len(objs))
+        counts = {(len(o.data.vertices), len(o.data.polygons)) for o in objs}
+        check(what + ": every frame has the counts", counts == {(args.verts, args.faces)}, str(counts))
+        scene = bpy.context.scene
+        for frame in range(0, args.sequence_frames + 2):
+            scene.frame_set(frame)
+            shown = sorted(o["vdb_isosimp_frame"] for o in objs if not o.hide_viewport and not o.hide_render)
+            expected = [frame] if 1 <= frame <= args.sequence_frames else []
+            check(what + ": frame %d shows its object only" % frame, shown == expected, str(shown))
 
 # Blender's own importers on the program's files (operator names changed across Blender versions).
 def operator_exists(name):

@@ -1,7 +1,7 @@
 // Builds a level-set sphere in memory (or reads a .vdb), simplifies its surface to 10% of the faces with
 // vdb_isosimp and writes it; the format follows the output name's extension.
 //   simplify_sphere OUT.glb            the in-memory sphere
-//   simplify_sphere OUT.ply IN.vdb     the first float grid of a file
+//   simplify_sphere OUT.ply IN.vdb     the default grid of a file (the library picks it)
 #include <vdb_isosimp/vdb_isosimp.h>
 
 #include <openvdb/openvdb.h>

@@ -35,7 +35,8 @@ class GridBase;
 namespace vdb_isosimp {
 
 struct Options {
-    // Grid to mesh; empty: the first float or double grid of the file.
+    // Grid to mesh; empty: the file's first level-set grid, else the grid named "density", else its
+    // first float or double grid (only the grids' metadata is read to choose).
     std::string gridName;
     // Iso-value. Unset: 0 for level sets, the midpoint of the grid's value range for other grids.
     std::optional<double> iso;
@@ -59,6 +60,9 @@ struct Options {
     // Changes the output (more slabs: more seams, each decimated when its two sides join); the output
     // never depends on threads or ranks. Default 2048.
     uint64_t blocksPerSlab = 2048;
+    // If > 0: after the final decimation, closed components whose area is below this many world
+    // units squared are removed (floaters); Report::componentsPruned counts them. Default 0 (none).
+    double minComponentArea = 0.0;
 };
 
 // Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget
@@ -88,6 +92,7 @@ struct Report {
     uint64_t maxIntermediateFaces = 0;
     uint64_t maxUncontractibleFaces = 0;
     uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
+    uint64_t componentsPruned = 0;    // closed components below Options::minComponentArea removed
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     double seconds = 0.0;
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)

@@ -728,9 +728,8 @@ size_t Decimator::removeDegenerateFaces()
     return remaining;
 }
 
-size_t Decimator::dropSmallComponents(size_t targetFaces)
+std::vector<Decimator::Component> Decimator::componentsByArea() const
 {
-    if (mFaceCount <= targetFaces) return 0;
     // Components by union-find over the vertices of live faces.
     std::vector<uint32_t> parent(mMeta.size());
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
@@ -743,7 +742,6 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
             parent[find(f.v[1])] = find(f.v[0]);
             parent[find(f.v[2])] = find(f.v[0]);
         }
-    struct Component { double area = 0; uint32_t firstFace = UINT32_MAX; std::vector<uint32_t> faces; };
     std::vector<Component> comps;
     std::vector<int64_t> index(mMeta.size(), -1);
     for (uint32_t f = 0; f < mFaces.size(); ++f) {
@@ -760,22 +758,41 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
         c.area += 0.5 * std::sqrt(dot(n, n));
         c.faces.push_back(f);
     }
-    if (comps.size() < 2) return 0;
     std::sort(comps.begin(), comps.end(), [](const Component& a, const Component& b) {
         return a.area != b.area ? a.area < b.area : a.firstFace < b.firstFace;
     });
+    return comps;
+}
+
+void Decimator::dropComponent(const Component& c)
+{
+    std::vector<uint32_t> verts;
+    for (uint32_t f : c.faces) {
+        for (uint32_t v : mFaces[f].v) verts.push_back(v);
+        killFace(f);
+    }
+    std::sort(verts.begin(), verts.end());
+    verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+    for (uint32_t v : verts) killVertex(v);
+}
+
+size_t Decimator::dropSmallComponents(size_t targetFaces)
+{
+    if (mFaceCount <= targetFaces) return 0;
+    const std::vector<Component> comps = componentsByArea();
     size_t dropped = 0;
     for (size_t i = 0; i + 1 < comps.size() && mFaceCount > targetFaces; ++i) {
-        std::vector<uint32_t> verts;
-        for (uint32_t f : comps[i].faces) {
-            for (uint32_t v : mFaces[f].v) verts.push_back(v);
-            killFace(f);
-        }
-        std::sort(verts.begin(), verts.end());
-        verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-        for (uint32_t v : verts) killVertex(v);
+        dropComponent(comps[i]);
         ++dropped;
     }
+    return dropped;
+}
+
+size_t Decimator::pruneComponents(double minArea)
+{
+    const std::vector<Component> comps = componentsByArea();
+    size_t dropped = 0;
+    for (; dropped < comps.size() && comps[dropped].area < minArea; ++dropped) dropComponent(comps[dropped]);
     return dropped;
 }
 

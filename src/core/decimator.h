@@ -87,6 +87,10 @@ public:
     // largest one, until at most `targetFaces` remain. Returns the number of components removed.
     size_t dropSmallComponents(size_t targetFaces);
 
+    // Floater clean-up: removes every component whose area (in the units of the positions, squared)
+    // is below `minArea`, the largest one too. Returns the number of components removed.
+    size_t pruneComponents(double minArea);
+
     // Requeues every contractible edge: edges refused earlier may have become legal since.
     void requeueAll();
 
@@ -214,6 +218,16 @@ private:
     void mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const std::array<double, 3>& target);
     bool degenerate(uint32_t f) const;
     bool dropFlatComponent(uint32_t seedFace);
+    // A connected component (faces sharing vertices): its area, first face and faces.
+    struct Component {
+        double area = 0;
+        uint32_t firstFace = UINT32_MAX;
+        std::vector<uint32_t> faces;
+    };
+    // Every component of the live mesh, smallest area first (ties: lowest first face), for the
+    // clean-ups that remove whole components (dropSmallComponents, pruneComponents).
+    std::vector<Component> componentsByArea() const;
+    void dropComponent(const Component& c);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
 
     ChunkedVector<VertexGeom> mGeom;

@@ -54,6 +54,8 @@ void checkOptions(const Options& o)
     if (o.threads < 0) throw InputError("threads must be >= 0");
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
     if (o.blocksPerSlab < 1) throw InputError("blocks per slab must be at least 1");
+    if (!(o.minComponentArea >= 0.0 && std::isfinite(o.minComponentArea)))
+        throw InputError("minimum component area must be a finite number >= 0");
 }
 
 // First stage of the pipelines below: next, next + 1, ... up to end (exclusive), in order. The counter
@@ -521,6 +523,13 @@ Result PipelineRun::finalPass()
     rep.trace.insert(rep.trace.end(), all.trace.begin() + traced, all.trace.end());
     rep.decimations += all.trace.size() - traced;
     rep.componentsDropped = whole.componentsDropped();
+    rep.componentsPruned = whole.componentsPruned();
+    if (whole.decimator().faceCount() == 0) {  // every component was below the minimum area
+        std::ostringstream s;
+        s << mPath << ": every component of the surface in grid '" << mInfo.gridName << "' has an area below "
+          << mOpt.minComponentArea;
+        throw EmptySurfaceError(s.str());
+    }
     rep.secondsFinal = mClock.seconds() - finalStart;
     mResult.mesh = whole.decimator().mesh();
     rep.facesOut = mResult.mesh.triangles.size();

@@ -32,6 +32,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             integer("max_intermediate_faces", r.maxIntermediateFaces),
             integer("max_uncontractible_faces", r.maxUncontractibleFaces),
             integer("components_dropped", r.componentsDropped),
+            integer("components_pruned", r.componentsPruned),
             real("seconds", r.seconds),
             real("seconds_slabs", r.secondsSlabs),
             real("seconds_final", r.secondsFinal),

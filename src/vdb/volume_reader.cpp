@@ -323,6 +323,21 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
 
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
+// The grid a file's reader means when none is named: the first level set (a file with a surface in it
+// is about that surface), else the grid named "density" (Houdini's and Blender's smoke, whose first
+// grid may be a colour channel such as color.x), else the first float or double grid. Decided on the
+// grids' metadata alone: no tree is read. Null when the file has no float or double grid.
+openvdb::GridBase::ConstPtr defaultGrid(const openvdb::GridPtrVec& metas)
+{
+    for (const auto& g : metas)
+        if (isScalar(*g) && g->getGridClass() == openvdb::GRID_LEVEL_SET) return g;
+    for (const auto& g : metas)
+        if (isScalar(*g) && g->getName() == "density") return g;
+    for (const auto& g : metas)
+        if (isScalar(*g)) return g;
+    return nullptr;
+}
+
 // What both entry points share once the grid is in hand: the info the pipeline needs, and the
 // checks that need the topology (never a voxel buffer).
 std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile)
@@ -415,8 +430,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     openvdb::GridBase::ConstPtr meta;
     if (gridName.empty()) {
-        for (const auto& g : *metas)
-            if (isScalar(*g)) { meta = g; break; }
+        meta = defaultGrid(*metas);
         if (!meta) {
             std::string names;
             for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName() + " (" + g->valueType() + ")";
@@ -430,9 +444,14 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
             for (const auto& g : *metas) names += (names.empty() ? "" : ", ") + g->getName();
             throw InputError(path + ": no grid named '" + gridName + "' (grids: " + names + ")");
         }
-        if (!isScalar(*meta))
+        if (!isScalar(*meta)) {
+            std::string scalars;
+            for (const auto& g : *metas)
+                if (isScalar(*g)) scalars += (scalars.empty() ? "" : ", ") + g->getName();
             throw InputError(path + ": grid '" + gridName + "' has value type " + meta->valueType() +
-                             "; only float and double grids can be meshed");
+                             "; only float and double grids can be meshed (" +
+                             (scalars.empty() ? "the file has none" : "float/double grids: " + scalars) + ")");
+        }
     }
 
     // Before the topology is read: the bounding box the file states, and the transform.

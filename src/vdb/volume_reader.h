@@ -33,7 +33,8 @@ struct VolumeInfo {
 
 class Volume {
 public:
-    // Opens `gridName` (empty: the first float/double grid) of `path`: the file's structure, the
+    // Opens `gridName` of `path` (empty: the first level set, else the grid named density, else the
+    // first float/double grid; Options::gridName): the file's structure, the
     // grid's type, class, transform and index bounding box are checked before any voxel is read
     // (input_checks.h); OpenVDB's own exceptions become InputError too.
     // @throw InputError naming the file and the problem.
