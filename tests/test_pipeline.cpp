@@ -147,15 +147,23 @@ TEST(Pipeline, RatioOneEqualsDenseMarchingCubes)
                 auto grid = vt::randomSparseGrid(spec);
                 const double iso = levelSet ? 0.0 : 0.5;
                 const std::string path = vt::writeGrid(grid, "dense_eq_" + std::to_string(n++));
-                Options o = ratioOptions(1.0);
-                o.iso = iso;
-                Result r = simplifyFile(path, o);
                 const Mesh ref = vt::denseMarchingCubes(*grid, iso);
                 SCOPED_TRACE(path);
                 EXPECT_GT(ref.triangles.size(), 1000u);
-                EXPECT_EQ(r.report.unfinalizedAtEnd, 0u);
-                EXPECT_EQ(r.report.facesFull, ref.triangles.size());
-                expectSameMesh(r.mesh, ref, 1e-4);
+                // One slab, and many small ones (bands of a few rows, seams through every layer).
+                for (uint64_t perSlab : {Options{}.blocksPerSlab, uint64_t(8)}) {
+                    Options o = ratioOptions(1.0);
+                    o.iso = iso;
+                    o.blocksPerSlab = perSlab;
+                    Result r = simplifyFile(path, o);
+                    SCOPED_TRACE(std::to_string(r.report.slabs) + " slabs");
+                    if (perSlab == 8) {
+                        EXPECT_GE(r.report.slabs, 8u);
+                    }
+                    EXPECT_EQ(r.report.unfinalizedAtEnd, 0u);
+                    EXPECT_EQ(r.report.facesFull, ref.triangles.size());
+                    expectSameMesh(r.mesh, ref, 1e-4);
+                }
                 // The dense surface is closed and outward (zero-area faces allowed at R = 1).
                 expectClosedOutward(ref, true, "dense reference");
             }

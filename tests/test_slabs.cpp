@@ -126,13 +126,34 @@ TEST(Slabs, RankSharesMakeEveryNodeOnce)
         }
 }
 
+// Any band height keeps the order monotone (a block never comes after one componentwise above it),
+// which the modifiability rule needs; a volume that makes one slab keeps plain z/y/x.
+TEST(Slabs, BandedOrderIsMonotone)
+{
+    const std::vector<BlockOrigin> blocks = randomBlocks(9, 3000, 12);
+    EXPECT_EQ(blockOrderFor(blocks, blocks.size()).bandRows, BlockOrder{}.bandRows);
+    const BlockOrder banded = blockOrderFor(blocks, 64);
+    EXPECT_GE(banded.bandRows, 1);
+    EXPECT_LT(banded.bandRows, 12);
+    for (const BlockOrder order : {BlockOrder{}, banded, BlockOrder{1}, BlockOrder{3}})
+        for (size_t i = 0; i < blocks.size(); ++i)
+            for (size_t j = 0; j < blocks.size(); j += 7) {
+                const BlockOrigin &a = blocks[i], &b = blocks[j];
+                if (a[0] <= b[0] && a[1] <= b[1] && a[2] <= b[2]) {
+                    ASSERT_FALSE(order(b, a)) << "band rows " << order.bandRows;
+                }
+            }
+}
+
 // The seam rule against its definition: a vertex on edge (v, axis) is final within blocks [begin, end)
 // iff all four cells around the edge lie in blocks of that range.
 TEST(Slabs, EdgeWithinMatchesTheCellsAroundTheEdge)
 {
-    const std::vector<BlockOrigin> blocks = randomBlocks(5, 600, 6);
+  for (const BlockOrder order : {BlockOrder{}, BlockOrder{2}}) {
+    std::vector<BlockOrigin> blocks = randomBlocks(5, 600, 6);
+    std::sort(blocks.begin(), blocks.end(), order);
     auto indexOf = [&](const BlockOrigin& o) {
-        const auto it = std::lower_bound(blocks.begin(), blocks.end(), o, blockBefore);
+        const auto it = std::lower_bound(blocks.begin(), blocks.end(), o, order);
         return it != blocks.end() && *it == o ? long(it - blocks.begin()) : -1L;
     };
     auto blockOf = [](int32_t x, int32_t y, int32_t z) { return BlockOrigin{x & ~7, y & ~7, z & ~7}; };
@@ -159,10 +180,11 @@ TEST(Slabs, EdgeWithinMatchesTheCellsAroundTheEdge)
         const size_t begin = rng() % blocks.size(), end = begin + rng() % (blocks.size() - begin + 1);
         const bool expect = lo >= long(begin) && (end == blocks.size() || hi < long(end));
         inside += expect;
-        EXPECT_EQ(edgeWithin(makeEdgeKey(x, y, z, axis), blocks, begin, end), expect)
+        EXPECT_EQ(edgeWithin(makeEdgeKey(x, y, z, axis), blocks, order, begin, end), expect)
             << x << "," << y << "," << z << " axis " << axis << " blocks [" << begin << ", " << end << ")";
     }
     EXPECT_GT(checked, 5000u);
     EXPECT_GT(inside, 500u);
     EXPECT_LT(inside, checked - 500);
+  }
 }

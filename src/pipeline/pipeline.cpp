@@ -147,6 +147,7 @@ private:
     bool mFlip = false;
     std::vector<BlockOrigin> mBlocks;
     double mRatio = 0.0;
+    BlockOrder mOrder;
     std::vector<Slab> mSlabs;
     uint64_t mSlabBatch = 0;
     double mVoxelArea = 0.0;
@@ -245,6 +246,8 @@ void PipelineRun::setTarget()
 // tree joins the two; every other vertex follows the modifiability rule inside its slab.
 void PipelineRun::splitSlabs()
 {
+    mOrder = blockOrderFor(mBlocks, mOpt.blocksPerSlab);
+    std::sort(mBlocks.begin(), mBlocks.end(), mOrder);
     mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabCount(mBlocks.size(), mOpt.blocksPerSlab));
     mResult.report.slabs = mSlabs.size();
     mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
@@ -339,7 +342,7 @@ void PipelineRun::timed(size_t l, size_t r, double start)
 void PipelineRun::join(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
 {
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    left.absorbSlab(std::move(right), [&](EdgeKey k) { return edgeWithin(k, mBlocks, begin, end); });
+    left.absorbSlab(std::move(right), [&](EdgeKey k) { return edgeWithin(k, mBlocks, mOrder, begin, end); });
 }
 
 // One slab's blocks: extracted in parallel, integrated (and decimated every batch) in block order.
@@ -397,7 +400,7 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     extractBlock(s, mCls, mInfo.indexToWorld, mFlip, m);
     const BlockOrigin& first = mBlocks[mSlabs[si].begin];
     for (size_t v = 0; v < m.keys.size(); ++v)
-        if (m.finalAfterBlock[v] && blockBefore(edgeBlocks(m.keys[v]).first, first)) m.finalAfterBlock[v] = 0;
+        if (m.finalAfterBlock[v] && mOrder(edgeBlocks(m.keys[v]).first, first)) m.finalAfterBlock[v] = 0;
 }
 
 // The in-order stage: the block's mesh joins its slab, leaves no block still needs are freed,
@@ -428,7 +431,7 @@ std::pair<size_t, size_t> PipelineRun::rankBlocks() const
 // Index of the block at origin `o` in the list, or the list's size if it is not there.
 size_t PipelineRun::blockIndex(const BlockOrigin& o) const
 {
-    const auto it = std::lower_bound(mBlocks.begin(), mBlocks.end(), o, blockBefore);
+    const auto it = std::lower_bound(mBlocks.begin(), mBlocks.end(), o, mOrder);
     return it != mBlocks.end() && *it == o ? size_t(it - mBlocks.begin()) : mBlocks.size();
 }
 

@@ -73,11 +73,23 @@ EdgeBlocks edgeBlocks(EdgeKey key)
     return {{block(lo[0]), block(lo[1]), block(lo[2])}, {block(v[0]), block(v[1]), block(v[2])}};
 }
 
-bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end)
+bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const BlockOrder& order, size_t begin, size_t end)
 {
     const EdgeBlocks eb = edgeBlocks(key);
-    if (begin > 0 && blockBefore(eb.first, blocks[begin])) return false;
-    return end >= blocks.size() || blockBefore(eb.last, blocks[end]);
+    if (begin > 0 && order(eb.first, blocks[begin])) return false;
+    return end >= blocks.size() || order(eb.last, blocks[end]);
+}
+
+BlockOrder blockOrderFor(const std::vector<BlockOrigin>& blocks, uint64_t blocksPerSlab)
+{
+    BlockOrder order;
+    if (blocks.size() <= std::max<uint64_t>(1, blocksPerSlab)) return order;
+    size_t rows = 0;  // occupied (z, y) rows of blocks
+    for (size_t i = 0; i < blocks.size(); ++i)
+        if (i == 0 || blocks[i][2] != blocks[i - 1][2] || blocks[i][1] != blocks[i - 1][1]) ++rows;
+    const double perRow = double(blocks.size()) / double(rows);
+    order.bandRows = int32_t(std::clamp<double>(std::round(std::sqrt(double(blocksPerSlab) / perRow)), 1.0, double(1 << 20)));
+    return order;
 }
 
 } // namespace vdb_isosimp

@@ -17,7 +17,35 @@ constexpr uint64_t kDefaultBlocksPerSlab = 2048;
 // More slabs only add seams: a few hundred keep several hundred workers busy.
 constexpr size_t kMaxSlabs = 256;
 
-// A run of consecutive blocks of the z/y/x-sorted list, extracted and decimated by its own integrator.
+// The order blocks are extracted in: bands of `bandRows` block rows in y, each swept z, then y, then x.
+// Any order that never puts a block before one that is componentwise below it keeps the modifiability
+// rule (modifiability.h), and this one does: a lower band comes first, within a band z/y/x. Slabs are
+// runs of this order, so a slab is a brick (a band's rows over a few layers) rather than a sheet that is
+// a fraction of a layer thick: a brick's seams are a third of a sheet's at 448^3, and seam faces wait
+// at full resolution for the merge that closes them.
+struct BlockOrder {
+    int32_t bandRows = 1 << 20;  // one band: plain z/y/x
+    int32_t band(const BlockOrigin& o) const
+    {
+        const int32_t row = o[1] >> 3;  // block origins are multiples of 8
+        return row >= 0 ? row / bandRows : -((-row - 1) / bandRows) - 1;  // rounded down below zero too
+    }
+    bool operator()(const BlockOrigin& a, const BlockOrigin& b) const
+    {
+        const int32_t ba = band(a), bb = band(b);
+        if (ba != bb) return ba < bb;
+        if (a[2] != b[2]) return a[2] < b[2];
+        if (a[1] != b[1]) return a[1] < b[1];
+        return a[0] < b[0];
+    }
+};
+
+// The band height for z/y/x-sorted `blocks` cut into slabs of `blocksPerSlab`: as many rows as a slab
+// has layers, so slabs are about as tall as they are thick (h = sqrt(blocksPerSlab / blocks per row)).
+// One band when the blocks make a single slab.
+BlockOrder blockOrderFor(const std::vector<BlockOrigin>& blocks, uint64_t blocksPerSlab);
+
+// A run of consecutive blocks in block order, extracted and decimated by its own integrator.
 struct Slab {
     size_t begin = 0, end = 0;
 };
@@ -57,7 +85,8 @@ RankNode rankNode(size_t slabs, size_t rank, size_t ranks);
 std::pair<size_t, size_t> rankSlabs(size_t slabs, size_t rank, size_t ranks);
 
 // Where a vertex's edge lies in the block order: the vertex is made by the cells around its edge, and
-// the first and last of those in z/y/x order sit in the blocks `first` and `last` (block origins).
+// the first and last of those in block order (componentwise the lowest and the highest, so in any
+// order of BlockOrder's kind) sit in the blocks `first` and `last` (block origins).
 // A vertex is final inside a slab when both lie in it, and at a merge node when both lie in the
 // node's slabs; otherwise it stays open, a seam vertex, until they do.
 struct EdgeBlocks {
@@ -65,16 +94,8 @@ struct EdgeBlocks {
 };
 EdgeBlocks edgeBlocks(EdgeKey key);
 
-// z/y/x order of block origins (the order of the block list).
-inline bool blockBefore(const BlockOrigin& a, const BlockOrigin& b)
-{
-    if (a[2] != b[2]) return a[2] < b[2];
-    if (a[1] != b[1]) return a[1] < b[1];
-    return a[0] < b[0];
-}
-
-// Whether every cell around the edge lies in blocks [begin, end) of the list (end == size: no upper
-// limit), i.e. the vertex is final once those blocks have joined.
-bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end);
+// Whether every cell around the edge lies in blocks [begin, end) of the list, sorted in `order` (end ==
+// size: no upper limit), i.e. the vertex is final once those blocks have joined.
+bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const BlockOrder& order, size_t begin, size_t end);
 
 } // namespace vdb_isosimp
