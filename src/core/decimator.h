@@ -101,8 +101,14 @@ public:
     void setMaxNormalTurn(double cosine) { mMinNormalCos = cosine; }
 
     // Area of a voxel's face in the units of the positions (the grid's transform; default: index
-    // space). Faces count with their area in the error quadrics, but at least 0.4 of this (addBlock).
-    void setVoxelArea(double area) { mMinPlaneWeight = kMinPlaneWeight * area; }
+    // space). Faces count with their area in the error quadrics, but at least 0.25 of this (addBlock);
+    // a vertex whose faces add up to less than 2 of this has its quadric scaled up to that weight when
+    // it becomes final (finalize).
+    void setVoxelArea(double area)
+    {
+        mMinPlaneWeight = kMinPlaneWeight * area;
+        mMinVertexWeight = kMinVertexWeight * area;
+    }
 
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
@@ -247,8 +253,10 @@ private:
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0, mAttempts = 0;
     double mMinNormalCos = kDefaultMinNormalCos;
-    static constexpr double kMinPlaneWeight = 0.4;  // of a voxel face's area
+    static constexpr double kMinPlaneWeight = 0.25;  // of a voxel face's area, per face
+    static constexpr double kMinVertexWeight = 2.0;  // of a voxel face's area, per vertex
     double mMinPlaneWeight = kMinPlaneWeight;
+    double mMinVertexWeight = kMinVertexWeight;
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;
