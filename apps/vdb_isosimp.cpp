@@ -156,6 +156,16 @@ std::string stemOf(const std::string& path)
     return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
 }
 
+// STEM_lodI.EXT for OUT = STEM.EXT (the folder kept): level I of a LOD chain.
+std::string levelPath(const std::string& output, size_t level)
+{
+    const auto slash = output.find_last_of('/');
+    const auto dot = output.find_last_of('.');
+    const bool hasExt = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+    const std::string stem = hasExt ? output.substr(0, dot) : output, ext = hasExt ? output.substr(dot) : "";
+    return stem + "_lod" + std::to_string(level) + ext;
+}
+
 std::string reportJson(const Report& r, const std::string& output, const Options& o)
 {
     std::ostringstream j;
@@ -288,13 +298,48 @@ int main(int argc, char** argv)
                    "machine's physical memory, or the container's limit when lower")
         ->default_val(maxMemory);
 
+    auto* maxErrorOpt = app.add_option("--max-error", opt.maxError,
+                   "E, in world units: no collapse may move the surface by more than E, in the passes during\n"
+                   "extraction as in the final one. Alone, E decides the face count; with --ratio or --faces,\n"
+                   "whichever stops first. The estimate of a collapse's displacement is sqrt(cost / weight):\n"
+                   "the area-weighted RMS distance of the new vertex from the planes of the faces merged into\n"
+                   "it (each face weighs its area, at least 0.4 voxel faces). The report gives the largest\n"
+                   "accepted (max_error_accepted)");
+    std::vector<double> lods;
+    auto* lodsOpt = app.add_option("--lods", lods,
+                   "R1,R2,...: a chain of levels of detail from one run, rates decreasing in (0,1]. Writes\n"
+                   "STEM_lod0.EXT, STEM_lod1.EXT, ... (STEM and EXT from -o): extraction decimates at R1, the\n"
+                   "final pass writes R1, continues to R2, writes it, and so on. Not with --faces")
+                        ->delimiter(',');
+    std::vector<std::string> attributes;
+    app.add_option("--attributes", opt.attributes,
+                   "NAME[,NAME...]: grids of the input (float, double, vec3) sampled trilinearly at every\n"
+                   "output vertex, each in its own index space (its own transform). PLY: vertex properties\n"
+                   "NAME (vec3: NAME_x NAME_y NAME_z); glTF: custom attributes _NAME. Not for .obj or .stl")
+        ->delimiter(',');
+    lodsOpt->excludes(facesOpt);
+    lodsOpt->excludes(ratioOpt);
+
     if (const int code = parseCommandLine(app, argc, argv, "vdb_isosimp"); code >= 0) return code;
+    if (*maxErrorOpt && !(opt.maxError > 0.0 && std::isfinite(opt.maxError))) {
+        std::cerr << "vdb_isosimp: --max-error must be a finite number greater than 0 (see --help)\n";
+        return 2;
+    }
+    // E alone: no face target.
+    if (*maxErrorOpt && !*ratioOpt && !*facesOpt && !*lodsOpt) opt.ratio = 0.0;
+    for (size_t i = 0; i < lods.size(); ++i)
+        if (!(lods[i] > 0.0 && lods[i] <= 1.0) || (i > 0 && !(lods[i] < lods[i - 1]))) {
+            std::cerr << "vdb_isosimp: --lods: rates must decrease and lie in (0,1], got '" << lods[i] << "' at position "
+                      << i + 1 << " (see --help)\n";
+            return 2;
+        }
+    opt.lods = lods;
     if (*isoOpt) opt.iso = iso;
     if (*isoOpt && !std::isfinite(iso)) {
         std::cerr << "vdb_isosimp: --iso must be a finite number (see --help)\n";
         return 2;
     }
-    if (!(opt.ratio > 0.0)) {  // also NaN, which CLI11's range check lets through
+    if (!(opt.ratio > 0.0) && !(opt.ratio == 0.0 && opt.maxError > 0.0 && !*ratioOpt)) {  // also NaN, which CLI11's range check lets through
         std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
         return 2;
     }
@@ -305,6 +350,19 @@ int main(int argc, char** argv)
         std::cerr << "vdb_isosimp: --max-memory: '" << maxMemory << "' is not a size (e.g. 8G, 512M, 0) (see --help)\n";
         return 2;
     }
+    if (!opt.attributes.empty()) {
+        try {
+            if (!formatHoldsAttributes(formatForPath(output, ascii))) {
+                std::cerr << "vdb_isosimp: --attributes: " << output
+                          << ": OBJ and STL have no vertex attributes; write .ply or .glb (see --help)\n";
+                return 2;
+            }
+        } catch (const std::exception&) {
+        }  // an unsupported extension is reported below, as without attributes
+    }
+    // The levels of a chain are written beside the output name: STEM_lod0.EXT, ...
+    std::vector<std::string> levelPaths;
+    for (size_t i = 0; i < lods.size(); ++i) levelPaths.push_back(levelPath(output, i));
     if (ascii) {
         try {
             formatForPath(output, true);
@@ -317,13 +375,32 @@ int main(int argc, char** argv)
     TerminalProgress bar;
     try {
         formatForPath(output, ascii);  // an unsupported extension fails before the long run
-        probeWritable(output);
-        std::vector<std::string> temporaries{temporaryPathFor(output)};
+        std::vector<std::string> temporaries;
+        for (const std::string& p : levelPaths.empty() ? std::vector<std::string>{output} : levelPaths) {
+            probeWritable(p);
+            temporaries.push_back(temporaryPathFor(p));
+        }
         for (const std::string* p : {&reportPath, &tracePath})
             if (!p->empty()) temporaries.push_back(temporaryPathFor(*p));
         Watchdog watchdog(temporaries);
         const bool showBar = !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
+        WriteOptions wo;
+        wo.ascii = ascii;
+        wo.normals = normals;
+        // Each level is written as soon as it is made, so only one level's mesh is held at a time.
+        opt.onLevel = [&](const LevelOfDetail& level) {
+            wo.objectName = level.run.grid;
+            wo.comment = "vdb_isosimp grid " + level.run.grid + " level " + std::to_string(level.index);
+            writeMesh(level.mesh, levelPaths[level.index], wo);
+            if (!quiet) {
+                bar.clear();
+                std::fprintf(stderr, "vdb_isosimp: level %zu: R=%.4g, %llu faces, %llu vertices, at %.2f s -> %s\n",
+                             level.index, level.report.ratio, (unsigned long long)level.report.facesOut,
+                             (unsigned long long)level.report.vertsOut, level.report.seconds,
+                             levelPaths[level.index].c_str());
+            }
+        };
         Result res = simplifyFile(input, opt, &progress);
         bar.clear();
         if (gSignal.load()) throw Cancelled("interrupted");
@@ -331,18 +408,16 @@ int main(int argc, char** argv)
         if (r.isoDefaulted && !quiet)
             std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': using the midpoint of its value range, %g\n",
                          r.gridClass.c_str(), r.grid.c_str(), r.iso);
-        WriteOptions wo;
-        wo.ascii = ascii;
-        wo.normals = normals;
         wo.objectName = r.grid;
         wo.comment = "vdb_isosimp grid " + r.grid;
-        writeMesh(res.mesh, output, wo);
+        if (lods.empty()) writeMesh(res.mesh, output, wo);
         if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
         if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
         if (!quiet)
             std::fprintf(stderr, "vdb_isosimp: %s: %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
                          input.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
-                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
+                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb,
+                         lods.empty() ? output.c_str() : levelPaths.back().c_str());
         return 0;
     } catch (const MemoryBudgetError& e) {
         bar.clear();

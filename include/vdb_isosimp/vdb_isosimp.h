@@ -15,6 +15,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +34,8 @@ class GridBase;
 } // namespace openvdb
 
 namespace vdb_isosimp {
+
+struct LevelOfDetail;
 
 struct Options {
     // Grid to mesh; empty: the first float or double grid of the file.
@@ -54,6 +57,24 @@ struct Options {
     // grid's topology exceeds this many bytes; checked on the opened grid before any voxel is read
     // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
     uint64_t maxMemoryBytes = 0;
+    // E > 0: an error bound in world units. No collapse (in the passes during extraction or in the
+    // final one) may move the surface by more than E, estimated as sqrt(cost / weight): the
+    // area-weighted RMS distance of the new vertex from the planes of the faces merged into it (each
+    // face weighs its area, at least 0.4 of a voxel face). With ratio or targetFaces as well, whichever
+    // stops first wins; ratio = 0 with E > 0 means E alone. 0 (default): no bound.
+    double maxError = 0.0;
+    // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
+    // level: extraction decimates at lods[0], the final pass decimates to each rate in turn and hands
+    // each level to onLevel as soon as it is made (so a caller can write it and let it go); the Result
+    // holds the last level and Report::levels one entry per level. ratio is ignored; targetFaces must
+    // be 0.
+    std::vector<double> lods;
+    std::function<void(const LevelOfDetail&)> onLevel;
+    // Grids sampled trilinearly at every output vertex (float, double: one value; vec3: three), each in
+    // its own index space (world -> index by its own transform), after the final pass; the values go
+    // to Mesh::attributes in this order. File input only (simplifyFile); every name is checked before
+    // any work (InputError for a missing or non-numeric grid).
+    std::vector<std::string> attributes;
 };
 
 // Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget
@@ -67,6 +88,14 @@ struct DecimationRecord {
     uint64_t uncontractible = 0;   // F_u before the pass
     uint64_t target = 0;           // F_t
     uint32_t slab = 0;             // which slab's integrator ran it (the final pass: slab 0)
+};
+
+// One level of a LOD chain (Options::lods), as the report sees it.
+struct LevelReport {
+    double ratio = 0.0;
+    uint64_t facesTarget = 0, facesOut = 0, vertsOut = 0;
+    double maxErrorAccepted = 0.0;  // largest estimated displacement of a collapse up to this level
+    double seconds = 0.0;           // time since the run started when the level was ready
 };
 
 // What a run did; `--report` writes it as JSON.
@@ -88,7 +117,19 @@ struct Report {
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
     double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
     double peakRssMb = 0.0;
+    // Largest estimated surface displacement (Options::maxError's estimate) of any collapse made, in
+    // world units: with a bound, at most Options::maxError.
+    double maxErrorAccepted = 0.0;
+    std::vector<LevelReport> levels;  // Options::lods: one per level, finest first
     std::vector<DecimationRecord> trace;
+};
+
+// A level of a LOD chain, handed to Options::onLevel: valid only during the call.
+struct LevelOfDetail {
+    size_t index = 0;      // 0: the finest
+    const Mesh& mesh;      // with its attributes (Options::attributes)
+    const LevelReport& report;
+    const Report& run;     // the run so far: grid, iso, faces_full, ... (levels up to this one)
 };
 
 // One field of the report, named as the program's --report JSON and the Python dict name it.

@@ -34,6 +34,32 @@ constexpr double kDegenerateShape = 1e-10;
 // moved across a face keeps 1e-8 of the cost of moving it off the face's plane by the same distance.
 constexpr double kAnchorWeight = 1e-8;
 
+// Squared distance from p to triangle (a, b, c): Ericson, "Real-Time Collision Detection", 5.1.5.
+double pointTriangleDistance2(const V3& p, const V3& a, const V3& b, const V3& c)
+{
+    const V3 ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
+    const auto dist2 = [&](const V3& q) { const V3 d = sub(p, q); return dot(d, d); };
+    const auto along = [](const V3& o, const V3& e, double t) { return V3{o[0] + t * e[0], o[1] + t * e[1], o[2] + t * e[2]}; };
+    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) return dist2(a);
+    const V3 bp = sub(p, b);
+    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) return dist2(b);
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return dist2(along(a, ab, d1 / (d1 - d3)));
+    const V3 cp = sub(p, c);
+    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) return dist2(c);
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return dist2(along(a, ac, d2 / (d2 - d6)));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return dist2(along(b, sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    const double denom = va + vb + vc;
+    if (!(std::abs(denom) > 0)) return std::min({dist2(a), dist2(b), dist2(c)});  // no area: its corners
+    const double v = vb / denom, w = vc / denom;
+    return dist2({a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w, a[2] + ab[2] * v + ac[2] * w});
+}
+
 } // namespace
 
 uint32_t Decimator::newVertex(const std::array<double, 3>& p)
@@ -48,6 +74,10 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         mMeta.emplace_back();
     }
     mGeom[id] = {p, Quadric{}};
+    if (mMaxError < HUGE_VAL) {
+        if (id >= mDrift.size()) mDrift.emplace_back();
+        mDrift[id] = 0.0f;
+    }
     VertexMeta& v = mMeta[id];
     ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
     ++v.ring;
@@ -325,9 +355,11 @@ void Decimator::absorb(Decimator& other)
             VertexGeom& mine = mGeom[it->second];
             const VertexGeom& theirs = other.mGeom[id];
             mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
+            copyDrift(it->second, other, id);
         } else {
             remap[id] = newVertex(other.mGeom[id].p);
             mGeom[remap[id]].q = other.mGeom[id].q;
+            copyDrift(remap[id], other, id);
             mOpen.emplace(key, remap[id]);
         }
     }
@@ -337,6 +369,7 @@ void Decimator::absorb(Decimator& other)
         if (other.mMeta[v].alive && remap[v] == UINT32_MAX) {
             remap[v] = newVertex(other.mGeom[v].p);
             mGeom[remap[v]].q = other.mGeom[v].q;
+            copyDrift(remap[v], other, v);
             mMeta[remap[v]].final = other.mMeta[v].final;
         }
         if ((v + 1) % kVertChunk == 0) {
@@ -523,6 +556,64 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
         if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
 }
 
+double Decimator::displacement(uint32_t a, uint32_t b, double cost) const
+{
+    // The trace of the 3x3 part is the sum of the plane weights (unit normals), and shifting a quadric
+    // leaves it unchanged, so the edge quadric's weight is the sum of its ends'.
+    const Quadric &qa = mGeom[a].q, &qb = mGeom[b].q;
+    const double weight = qa.q[0] + qa.q[4] + qa.q[7] + qb.q[0] + qb.q[4] + qb.q[7];
+    return weight > 0 ? std::sqrt(std::max(0.0, cost) / weight) : 0.0;
+}
+
+double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit) const
+{
+    // The faces around a and b before the collapse and after it (p in place of either end; the two
+    // faces on ab vanish). Both ways, each side's corners, centroids and edge midpoints against the
+    // other side: a collapse that flattens a bump or a dent keeps its corners on the surface but moves
+    // the middle of its faces.
+    using Tri = std::array<V3, 3>;
+    std::vector<Tri> before, after;
+    for (const uint32_t end : {a, b})
+        for (uint32_t c = mMeta[end].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
+            const bool hasA = fv[0] == a || fv[1] == a || fv[2] == a, hasB = fv[0] == b || fv[1] == b || fv[2] == b;
+            if (end == b && hasA) continue;  // seen from a already
+            before.push_back({mGeom[fv[0]].p, mGeom[fv[1]].p, mGeom[fv[2]].p});
+            if (hasA && hasB) continue;
+            Tri t;
+            for (int k = 0; k < 3; ++k) t[k] = fv[k] == a || fv[k] == b ? p : mGeom[fv[k]].p;
+            after.push_back(t);
+        }
+    // Squared; stops early once the distance passes `limit` (the collapse is refused then anyway),
+    // and a sample stops looking once a face is nearer than the worst so far.
+    const double limit2 = limit * limit;
+    const auto farthest = [limit2](const std::vector<Tri>& from, const std::vector<Tri>& to, double worst) {
+        for (const Tri& t : from) {
+            const V3 samples[7] = {t[0], t[1], t[2],
+                                   {(t[0][0] + t[1][0] + t[2][0]) / 3, (t[0][1] + t[1][1] + t[2][1]) / 3, (t[0][2] + t[1][2] + t[2][2]) / 3},
+                                   {(t[0][0] + t[1][0]) / 2, (t[0][1] + t[1][1]) / 2, (t[0][2] + t[1][2]) / 2},
+                                   {(t[1][0] + t[2][0]) / 2, (t[1][1] + t[2][1]) / 2, (t[1][2] + t[2][2]) / 2},
+                                   {(t[2][0] + t[0][0]) / 2, (t[2][1] + t[0][1]) / 2, (t[2][2] + t[0][2]) / 2}};
+            for (const V3& q : samples) {
+                double nearest = HUGE_VAL;
+                for (const Tri& u : to) {
+                    nearest = std::min(nearest, pointTriangleDistance2(q, u[0], u[1], u[2]));
+                    if (nearest <= worst) break;
+                }
+                worst = std::max(worst, nearest);
+                if (worst > limit2) return worst;
+            }
+        }
+        return worst;
+    };
+    return std::sqrt(farthest(after, before, farthest(before, after, 0.0)));
+}
+
+void Decimator::copyDrift(uint32_t mine, const Decimator& other, uint32_t theirs)
+{
+    if (mMaxError < HUGE_VAL && theirs < other.mDrift.size()) mDrift[mine] = std::max(mDrift[mine], other.mDrift[theirs]);
+}
+
 Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
 {
     EdgeLink e;
@@ -537,6 +628,20 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     if (place == count) return Outcome::Refused;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
+    double moved = displacement(a, b, places[place].cost);
+    // Under a bound, the quadric's plane distances are checked against the surface itself too: how
+    // far the collapse moves the surface locally (fanDistance: a thin spike folded into its base costs
+    // little on its nearly parallel side planes, yet moves its tip by its whole length), added to how
+    // far the surface at either end had already drifted from the full-resolution one.
+    double drift = 0.0;
+    if (mMaxError < HUGE_VAL && moved <= mMaxError) {
+        const double before = std::max(mDrift[a], mDrift[b]);
+        drift = before + fanDistance(a, b, places[place].p, mMaxError - before);
+        moved = std::max(moved, drift);
+    }
+    if (moved > mMaxError) return Outcome::TooFar;
+    mMaxErrorAccepted = std::max(mMaxErrorAccepted, moved);
+    if (mMaxError < HUGE_VAL) mDrift[a] = mDrift[b] = float(drift);  // the survivor keeps it
 
     mergeEnds(a, b, e, places[place].p);
     return Outcome::Collapsed;
@@ -572,7 +677,8 @@ size_t Decimator::decimateTo(size_t targetFaces)
         double cost;
         switch (collapse(a, b, c.cost(), &cost)) {
         case Outcome::Collapsed: ++collapses; break;
-        case Outcome::Refused: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
+        case Outcome::Refused:
+        case Outcome::TooFar: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }
     }
@@ -658,8 +764,9 @@ size_t Decimator::removeDegenerateFaces()
     // A zero-area face has no normal worth keeping, but its neighbours do: any turn short of a fold
     // is allowed. (Letting faces fold here turned a needle-thin sphere, 1e-6 voxels on two axes and
     // all slivers, inside out.)
-    const double savedCos = mMinNormalCos;
+    const double savedCos = mMinNormalCos, savedError = mMaxError;
     mMinNormalCos = 0.0;
+    mMaxError = HUGE_VAL;  // removing a face of no area moves the surface by about nothing
     // Zero area also means tiny next to the whole surface: 1e-12 of the squared bounding-box diagonal
     // (vertices a hair apart around one voxel corner make such faces with a fair shape).
     V3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
@@ -700,6 +807,7 @@ size_t Decimator::removeDegenerateFaces()
         }
     }
     mMinNormalCos = savedCos;
+    mMaxError = savedError;
     mZeroArea = 0.0;
     return remaining;
 }

@@ -10,6 +10,7 @@
 // placement avoids flipping or degenerating a face.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -74,6 +75,17 @@ public:
     // Area of a voxel's face in the units of the positions (the grid's transform; default: index
     // space). Faces count with their area in the error quadrics, but at least 0.4 of this (addBlock).
     void setVoxelArea(double area) { mMinPlaneWeight = kMinPlaneWeight * area; }
+
+    // Error bound, in the units of the positions: a collapse whose estimated surface displacement
+    // exceeds it is refused (and retried only once the faces around an end change). The estimate is
+    // the area-weighted RMS distance of the placement from the planes merged into the edge's two
+    // quadrics, sqrt(cost / weight), where weight, the trace of the quadric's 3x3 part, is the sum of
+    // the plane weights (each face's area, at least 0.4 voxel faces); under a bound, also the distance
+    // of both ends from the faces the collapse leaves (fanDistance). Infinity (default): no bound.
+    void setMaxError(double error) { mMaxError = error; }
+    // Largest estimated displacement of a collapse made so far (same estimate; without a bound, the
+    // quadric part only).
+    double maxErrorAccepted() const { return mMaxErrorAccepted; }
 
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
@@ -175,9 +187,18 @@ private:
     // valid placement costs least; for zero-area faces.
     bool collapseCheapestEdge(uint32_t f, bool aroundFace);
     bool openPinch(uint32_t f);
-    enum class Outcome { Collapsed, Refused, Costlier };
+    enum class Outcome { Collapsed, Refused, Costlier, TooFar };
+    // sqrt(cost / weight) of edge ab at a placement of that cost (setMaxError).
+    double displacement(uint32_t a, uint32_t b, double cost) const;
+    // How far the surface around ab moves when ab collapses to p: the largest distance of the corners,
+    // centroids and edge midpoints of the faces around a and b before from the faces after, and the
+    // other way. Any result above `limit` may stop the search early.
+    double fanDistance(uint32_t a, uint32_t b, const std::array<double, 3>& p, double limit) const;
+    // Slab merge under a bound: vertex `mine` keeps the larger drift of itself and `other`'s `theirs`.
+    void copyDrift(uint32_t mine, const Decimator& other, uint32_t theirs);
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
-    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
+    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier), or when it
+    // moves the surface by more than the error bound (TooFar).
     Outcome collapse(uint32_t a, uint32_t b, float maxCost, double* cost);
     // What edgeMayCollapse learns of edge ab for mergeEnds.
     struct EdgeLink {
@@ -210,6 +231,10 @@ private:
     double mMinNormalCos = kDefaultMinNormalCos;
     static constexpr double kMinPlaneWeight = 0.4;  // of a voxel face's area
     double mMinPlaneWeight = kMinPlaneWeight;
+    double mMaxError = HUGE_VAL, mMaxErrorAccepted = 0.0;
+    // Under a bound, per vertex: how far the surface around it may have moved from the full-resolution
+    // one, the sum of the local displacements of the collapses that made it (empty without a bound).
+    ChunkedVector<float> mDrift;
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;

@@ -15,6 +15,7 @@ namespace vdb_isosimp {
 // What one slab's integrator measured; merged into the Report in slab order.
 struct SlabStats {
     uint64_t decimations = 0, maxIntermediateFaces = 0, maxUncontractibleFaces = 0;
+    double maxErrorAccepted = 0.0;  // of the slab's own passes (its decimator is emptied when it joins slab 0)
     std::vector<DecimationRecord> trace;
 };
 
@@ -29,7 +30,11 @@ public:
     Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
         : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab)
     {
-        mInitial = ratio < o.initialRatio;
+        // With an error bound the bound keeps early batches from losing detail; the initial phase,
+        // which decimates whenever the mesh exceeds B, would run at every block once the bound holds
+        // the mesh above B.
+        mInitial = ratio < o.initialRatio && !(o.maxError > 0);
+        if (o.maxError > 0) mDec.setMaxError(o.maxError);
     }
 
     void add(const BlockMesh& b)
@@ -63,22 +68,37 @@ public:
         mFacesGenerated = facesGenerated;
         unfinalized = mDec.finalizeRemaining();
         // The merged queue holds every slab's edges plus the welded seam's.
+        reach(targetFaces);
+    }
+
+    // Decimates the finished surface to `targetFaces`; called again with smaller targets, it makes
+    // the next levels of a LOD chain from the previous one.
+    void reach(uint64_t targetFaces)
+    {
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
-        // Then, only if still above target, allow larger normal turns step by step.
+        // Then, only if still above target, allow larger normal turns step by step, unless an error
+        // bound is what stops the collapses: folds do not bring the surface closer.
+        const bool bounded = mOpt.maxError > 0;
         for (double turn : {Decimator::kDefaultMinNormalCos, 0.0, -0.3, -0.6}) {
+            if (bounded && turn != Decimator::kDefaultMinNormalCos) break;
             mDec.setMaxNormalTurn(turn);
             while (mDec.faceCount() > targetFaces) {
                 mDec.requeueAll();
-                if (mDec.decimateTo(targetFaces) == 0) break;
+                // Under a bound one retry is enough: edges refused for their error come back through
+                // the refused list once the faces around them change, and a full requeue would measure
+                // every edge of the mesh again.
+                if (mDec.decimateTo(targetFaces) == 0 || bounded) break;
             }
         }
         mDec.setMaxNormalTurn(Decimator::kDefaultMinNormalCos);
         // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
-        if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
+        if (targetFaces < mFacesGenerated) mDec.removeDegenerateFaces();
         // Still above target (more than 1%): the surface is mostly small closed components that no
-        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds.
-        if (double(mDec.faceCount()) > 1.01 * double(targetFaces)) mComponentsDropped = mDec.dropSmallComponents(targetFaces);
+        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds
+        // (not under an error bound: a dropped component moves the surface by its own size).
+        if (!bounded && double(mDec.faceCount()) > 1.01 * double(targetFaces))
+            mComponentsDropped += mDec.dropSmallComponents(targetFaces);
     }
 
     // End of a slab: its last batch is decimated like the others (in parallel with the other slabs),
@@ -87,6 +107,7 @@ public:
     {
         if (mSinceLast > 0 && !mInitial) decimate(batchTarget(double(mFacesGenerated)));
         mSinceLast = 0;
+        mStats.maxErrorAccepted = mDec.maxErrorAccepted();
     }
 
     // The slab above the ones merged here so far is done: its mesh joins this one, and the seam between

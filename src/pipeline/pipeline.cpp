@@ -8,10 +8,12 @@
 #include "core/edge_key.h"
 #include "core/marching_cubes.h"
 #include "core/schedule.h"
+#include "pipeline/levels.h"
 #include "pipeline/memory_budget.h"
 #include "pipeline/pipeline_internal.h"
 #include "pipeline/run_stats.h"
 #include "pipeline/slabs.h"
+#include "vdb/attribute_sampler.h"
 #include "vdb/block_order.h"
 #include "vdb/volume_reader.h"
 #include "vdb_isosimp/errors.h"
@@ -38,7 +40,15 @@ namespace {
 
 void checkOptions(const Options& o)
 {
-    if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
+    if (!(o.maxError >= 0.0 && o.maxError < HUGE_VAL)) {
+        std::ostringstream s;
+        s << "maximum error must be a finite number >= 0, got " << o.maxError;
+        throw InputError(s.str());
+    }
+    checkLods(o);
+    // Ratio 0 is no face target: the error bound alone decides.
+    if (o.ratio == 0.0 && o.maxError > 0.0) {
+    } else if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
         std::ostringstream s;
         s << "ratio must be in (0, 1], got " << o.ratio;
         throw InputError(s.str());
@@ -118,6 +128,7 @@ private:
     Stopwatch mClock;
     Result mResult;
     std::unique_ptr<Volume> mVol;
+    std::unique_ptr<AttributeSampler> mAttributes;  // Options::attributes, checked at open
     VolumeInfo mInfo;  // a copy: the volume is opened again after counting
     Classifier mCls;
     bool mFlip = false;
@@ -137,6 +148,8 @@ void PipelineRun::openVolume(const VolumeOpener& open)
 {
     mVol = open();
     mInfo = mVol->info();
+    // Attribute grids are checked now, before any voxel is read; they are read after the final pass.
+    mAttributes = std::make_unique<AttributeSampler>(mInfo.file, mOpt.attributes);
     // On this open, not one of its own: reading the topology of a large file takes a while.
     if (mOpt.maxMemoryBytes > 0) checkMemoryBudget(mPath, mInfo, mOpt, mOpt.maxMemoryBytes);
     Report& rep = mResult.report;
@@ -178,7 +191,8 @@ void PipelineRun::listBlocks()
 
 void PipelineRun::setTarget(const VolumeOpener& open)
 {
-    mRatio = mOpt.ratio;
+    // A LOD chain is extracted at its finest rate; the final pass makes the coarser levels from it.
+    mRatio = mOpt.lods.empty() ? mOpt.ratio : mOpt.lods.front();
     if (mOpt.targetFaces == 0) return;
     // Counted on the volume itself, which frees leaves as it goes, then opened again for extraction:
     // one copy of the topology at a time (a second copy made the start of a run its peak on large
@@ -330,11 +344,21 @@ Result PipelineRun::finalPass()
     const size_t traced = whole.stats().trace.size();
     whole.finish(rep.facesTarget, facesGenerated, unfinalized);
     rep.unfinalizedAtEnd = unfinalized - seamVertices;
+    // Slabs absorbed into slab 0 keep what their own passes accepted.
+    for (const auto& integ : mIntegs) rep.maxErrorAccepted = std::max(rep.maxErrorAccepted, integ->stats().maxErrorAccepted);
+    rep.maxErrorAccepted = std::max(rep.maxErrorAccepted, whole.decimator().maxErrorAccepted());
+    mAttributes->load();
+    if (mOpt.lods.empty()) {
+        mResult.mesh = whole.decimator().mesh();
+        mResult.mesh.attributes = mAttributes->sample(mResult.mesh.points);
+    } else {
+        // Each level is made from the one before, handed over and let go; the last one is the result.
+        mResult.mesh = makeLevels(whole, rep, mOpt, *mAttributes, mClock);
+    }
     rep.trace.insert(rep.trace.end(), whole.stats().trace.begin() + traced, whole.stats().trace.end());
     rep.decimations += whole.stats().trace.size() - traced;
     rep.componentsDropped = whole.componentsDropped();
     rep.secondsFinal = mClock.seconds() - finalStart;
-    mResult.mesh = whole.decimator().mesh();
     rep.facesOut = mResult.mesh.triangles.size();
     rep.vertsOut = mResult.mesh.points.size();
     rep.seconds = mClock.seconds();

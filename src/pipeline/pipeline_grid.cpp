@@ -51,6 +51,8 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
     if (!isScalar(grid))
         throw InputError(label + ": value type " + grid.valueType() + "; only float and double grids can be meshed");
 
+    if (!options.attributes.empty())
+        throw InputError(label + ": attributes are sampled from the other grids of a file; an in-memory grid has none");
     // Read the caller's grid in place: the grid volume never frees voxel buffers.
     openvdb::GridBase::ConstPtr g = grid.copyGrid();  // shares the tree
     Result r = simplifyVolume([&] { return Volume::fromGrid(g, label); }, label, options, progress);
