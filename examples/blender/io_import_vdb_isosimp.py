@@ -59,13 +59,15 @@ def find_program():
     return shutil.which("vdb_isosimp")
 
 
-def read_binary_ply(path):
-    """Vertices (float32 N x 3) and triangles (int32 M x 3) of the binary PLY the program writes."""
+def read_binary_ply(path, attributes=()):
+    """Vertices (float32 N x 3), triangles (int32 M x 3) and the named attributes (a dict of float32
+    arrays, N or N x 3 for the NAME_x NAME_y NAME_z columns of a vector grid) of the binary PLY the
+    program writes."""
     with open(path, "rb") as f:
         data = f.read()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     nv = nf = 0
-    props = 0
+    names = []
     element = None
     for line in data[:end].decode("ascii", "replace").splitlines():
         w = line.split()
@@ -74,27 +76,48 @@ def read_binary_ply(path):
         elif w[:2] == ["element", "face"]:
             nf, element = int(w[2]), "face"
         elif w and w[0] == "property" and element == "vertex":
-            props += 1
-    verts = np.frombuffer(data, dtype="<f4", count=nv * props, offset=end).reshape(nv, props)[:, :3]
+            names.append(w[2])
+    table = np.frombuffer(data, dtype="<f4", count=nv * len(names), offset=end).reshape(nv, len(names))
     rec = np.dtype([("n", "u1"), ("i", "<i4", (3,))])
-    faces = np.frombuffer(data, dtype=rec, count=nf, offset=end + 4 * nv * props)["i"]
-    return verts, faces
+    faces = np.frombuffer(data, dtype=rec, count=nf, offset=end + 4 * nv * len(names))["i"]
+    values = {}
+    for name in attributes:
+        if name in names:
+            values[name] = table[:, names.index(name)].copy()
+        else:
+            values[name] = np.stack([table[:, names.index(name + "_" + c)] for c in "xyz"], axis=1)
+    return table[:, :3], faces, values
 
 
-def run_program(program, path, grid, iso, ratio):
+def run_program(program, path, grid, iso, ratio, max_error=0.0, attributes=()):
     with tempfile.TemporaryDirectory() as tmp:
         out, report = os.path.join(tmp, "mesh.ply"), os.path.join(tmp, "report.json")
-        cmd = [program, path, "-q", "-o", out, "--report", report, "--ratio", repr(ratio)]
+        cmd = [program, path, "-q", "-o", out, "--report", report]
+        if max_error > 0:
+            cmd += ["--max-error", repr(max_error)]
+        else:
+            cmd += ["--ratio", repr(ratio)]
         if grid:
             cmd += ["--grid", grid]
         if iso is not None:
             cmd += ["--iso", repr(iso)]
+        if attributes:
+            cmd += ["--attributes", ",".join(attributes)]
         done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         if done.returncode != 0:
             raise RuntimeError(done.stderr.strip() or "vdb_isosimp failed with exit code %d" % done.returncode)
-        verts, faces = read_binary_ply(out)
+        verts, faces, values = read_binary_ply(out, attributes)
         with open(report) as f:
-            return verts, faces, json.load(f)
+            return verts, faces, json.load(f), values
+
+
+def add_attributes(mesh, values):
+    """Sampled grids as point attributes of the mesh: FLOAT for scalar grids, FLOAT_VECTOR for vec3."""
+    for name, array in values.items():
+        vector = array.ndim == 2
+        attribute = mesh.attributes.new(name=name, type="FLOAT_VECTOR" if vector else "FLOAT", domain="POINT")
+        attribute.data.foreach_set("vector" if vector else "value",
+                                   np.ascontiguousarray(array, dtype=np.float32).ravel())
 
 
 def make_object(context, name, verts, faces):
@@ -138,6 +161,14 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
                        default=0.0, precision=4)
     ratio: FloatProperty(name="Ratio", description="Faces kept / faces of the full-resolution surface",
                          default=0.2, min=0.0001, max=1.0, precision=4)
+    max_error: FloatProperty(name="Max error",
+                             description="If > 0: no simplification step moves the surface by more than this "
+                                         "(world units); the ratio is then not used",
+                             default=0.0, min=0.0, precision=4)
+    attributes: StringProperty(name="Attributes",
+                               description="Grids of the file sampled at every vertex, comma-separated "
+                                           "(float, double or vec3): point attributes named after the grids",
+                               default="")
     backend: EnumProperty(
         name="Run with",
         items=(("AUTO", "Automatic", "The Python module if it can be imported, else the program"),
@@ -152,20 +183,32 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
         row = layout.row()
         row.enabled = not self.auto_iso
         row.prop(self, "iso")
-        layout.prop(self, "ratio")
+        row = layout.row()
+        row.enabled = self.max_error <= 0
+        row.prop(self, "ratio")
+        layout.prop(self, "max_error")
+        layout.prop(self, "attributes")
         layout.prop(self, "backend")
 
     def execute(self, context):
         iso = None if self.auto_iso else self.iso
+        attributes = [a.strip() for a in self.attributes.split(",") if a.strip()]
+        # An error bound alone decides the face count.
+        ratio = None if self.max_error > 0 else self.ratio
+        values = {}
         module = load_module() if self.backend in {"AUTO", "MODULE"} else None
         wm = context.window_manager
         try:
             if module is not None:
                 wm.progress_begin(0, 100)
                 try:
-                    verts, faces, report = module.simplify(
-                        self.filepath, grid=self.grid, iso=iso, ratio=self.ratio,
+                    result = module.simplify(
+                        self.filepath, grid=self.grid, iso=iso, ratio=ratio, max_error=self.max_error,
+                        attributes=attributes,
                         progress=lambda fraction, kept: wm.progress_update(int(100 * fraction)))
+                    verts, faces, report = result[:3]
+                    if attributes:
+                        values = result[3]
                 finally:
                     wm.progress_end()
                 used = "module"
@@ -179,7 +222,8 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
                     self.report({"ERROR"}, "neither the vdb_isosimp Python module nor the vdb_isosimp program "
                                            "was found (set one in the add-on preferences)")
                     return {"CANCELLED"}
-                verts, faces, report = run_program(program, self.filepath, self.grid, iso, self.ratio)
+                verts, faces, report, values = run_program(program, self.filepath, self.grid, iso, self.ratio,
+                                                           self.max_error, attributes)
                 used = "program"
         except Exception as e:  # the library's errors are one readable line
             self.report({"ERROR"}, str(e))
@@ -187,6 +231,7 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
 
         name = report.get("grid") or os.path.splitext(os.path.basename(self.filepath))[0]
         obj = make_object(context, name, verts, faces)
+        add_attributes(obj.data, values)
         for key in ("iso", "ratio", "faces_full", "faces_out", "verts_out"):
             obj["vdb_isosimp_" + key] = report[key]
         message = "%s: %d vertices, %d faces (%d at full resolution, iso %g) via the %s" % (

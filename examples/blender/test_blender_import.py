@@ -25,6 +25,7 @@ p.add_argument("--ply")
 p.add_argument("--obj")
 p.add_argument("--glb")
 p.add_argument("--stl")
+p.add_argument("--attribute", default="noise", help="a grid of --vdb sampled as a point attribute")
 args = p.parse_args(argv)
 
 failures = []
@@ -95,6 +96,30 @@ for backend in ("MODULE", "PROGRAM"):
     else:
         check("module and program give the same positions", np.array_equal(reference, co))
     check("object named after the grid", not obj.name.startswith("Mesh"), obj.name)
+
+# Sampled grids arrive as point attributes, the same through both back-ends (the meshed grid itself,
+# sampled at its own vertices: about the iso-value).
+attribute_values = None
+for backend in ("MODULE", "PROGRAM"):
+    clear_scene()
+    result = bpy.ops.import_mesh.vdb_isosimp(filepath=os.path.abspath(args.vdb), ratio=args.ratio, backend=backend,
+                                             attributes=args.attribute, **iso_kwargs)
+    obj = check_counts("add-on (%s) with attributes" % backend)
+    if obj is None:
+        continue
+    attribute = obj.data.attributes.get(args.attribute)
+    check("attribute '%s' via %s" % (args.attribute, backend),
+          attribute is not None and attribute.domain == "POINT" and attribute.data_type == "FLOAT")
+    if attribute is None:
+        continue
+    values = np.empty(len(obj.data.vertices), dtype=np.float32)
+    attribute.data.foreach_get("value", values)
+    if args.iso is not None:
+        check("attribute about the iso-value", abs(float(np.median(values)) - args.iso) < 0.05, str(np.median(values)))
+    if attribute_values is None:
+        attribute_values = values
+    else:
+        check("module and program give the same attribute", np.array_equal(attribute_values, values))
 
 # Blender's own importers on the program's files (operator names changed across Blender versions).
 def operator_exists(name):
