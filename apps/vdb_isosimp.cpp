@@ -317,12 +317,20 @@ int main(int argc, char** argv)
                    "output vertex, each in its own index space (its own transform). PLY: vertex properties\n"
                    "NAME (vec3: NAME_x NAME_y NAME_z); glTF: custom attributes _NAME. Not for .obj or .stl")
         ->delimiter(',');
+    auto* weightOpt = app.add_option("--attribute-weight", opt.attributeWeight,
+                   "W > 0: the simplification also keeps the detail of the first --attributes grid (float or\n"
+                   "double): a collapse costs its geometric error plus W^2 times the attribute's error\n"
+                   "(Hoppe 1999 attribute quadrics), W in attribute units per world unit");
     lodsOpt->excludes(facesOpt);
     lodsOpt->excludes(ratioOpt);
 
     if (const int code = parseCommandLine(app, argc, argv, "vdb_isosimp"); code >= 0) return code;
     if (*maxErrorOpt && !(opt.maxError > 0.0 && std::isfinite(opt.maxError))) {
         std::cerr << "vdb_isosimp: --max-error must be a finite number greater than 0 (see --help)\n";
+        return 2;
+    }
+    if (*weightOpt && (!(opt.attributeWeight > 0.0 && std::isfinite(opt.attributeWeight)) || opt.attributes.empty())) {
+        std::cerr << "vdb_isosimp: --attribute-weight must be a finite number greater than 0, with --attributes (see --help)\n";
         return 2;
     }
     // E alone: no face target.

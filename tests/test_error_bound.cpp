@@ -34,7 +34,8 @@ Bounded runBounded(const std::string& dir, const std::string& volume, const std:
 
 TEST_P(ErrorBound, HausdorffWithinTwiceTheBound)
 {
-    const std::string dir = scratchDir(), volume = GetParam();
+    const ScratchDir scratch;
+    const std::string dir = scratch.path, volume = GetParam();
     ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + volume + " -n 96 -o " + volume + ".vdb").code, 0);
     ASSERT_EQ(runTool(dir, q(VDB_ISOSIMP_EXE) + " " + volume + ".vdb -q -r 1 -o " + volume + "_full.ply").code, 0);
     double previousFaces = HUGE_VAL;
@@ -53,7 +54,8 @@ TEST_P(ErrorBound, HausdorffWithinTwiceTheBound)
 
 TEST_P(ErrorBound, WithARatioWhicheverStopsFirst)
 {
-    const std::string dir = scratchDir(), volume = GetParam();
+    const ScratchDir scratch;
+    const std::string dir = scratch.path, volume = GetParam();
     ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + volume + " -n 96 -o " + volume + ".vdb").code, 0);
     ASSERT_EQ(runTool(dir, q(VDB_ISOSIMP_EXE) + " " + volume + ".vdb -q -r 1 -o " + volume + "_full.ply").code, 0);
     const Bounded alone = runBounded(dir, volume, "--max-error 0.1");
@@ -74,7 +76,8 @@ INSTANTIATE_TEST_SUITE_P(Volumes, ErrorBound, ::testing::Values("sphere", "noise
 
 TEST(ErrorBoundUsage, NonPositiveOrNonFiniteIsAUsageError)
 {
-    const std::string dir = scratchDir();
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
     ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " sphere -n 32 -o s.vdb").code, 0);
     for (const char* bad : {"0", "-0.5", "nan", "inf", "x"}) {
         const ToolRun r = runTool(dir, q(VDB_ISOSIMP_EXE) + " s.vdb --max-error " + bad + " -o out.ply");

@@ -23,7 +23,8 @@ double rmsFromFull(const std::string& dir, const std::string& mesh)
 
 TEST(Lods, OneRunWritesEveryLevel)
 {
-    const std::string dir = scratchDir();
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
     ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " noise -n 192 -o noise.vdb").code, 0);
     // Timed runs, best of two each (the machine may be shared).
     const std::string exe = q(VDB_ISOSIMP_EXE) + " noise.vdb -q ";
@@ -63,7 +64,8 @@ TEST(Lods, OneRunWritesEveryLevel)
 
 TEST(Lods, BadChainsAreUsageErrors)
 {
-    const std::string dir = scratchDir();
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
     ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " sphere -n 32 -o s.vdb").code, 0);
     for (const char* bad : {"--lods 0.2,0.3", "--lods 0.2,0.2", "--lods 0,0.1", "--lods 1.5,0.1", "--lods 0.2,-0.1",
                             "--lods 0.2,x", "--lods 0.2,0.1 -f 1000", "--lods 0.2,0.1 -r 0.5"}) {

@@ -48,16 +48,20 @@ inline double jsonNumber(const std::string& json, const std::string& key, const 
     return std::strtod(json.c_str() + at + key.size() + 3, nullptr);
 }
 
-// A fresh scratch folder named after the running test.
-inline std::string scratchDir()
-{
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::filesystem::path d = std::filesystem::temp_directory_path() /
-                                    ("vdb_isosimp_" + std::string(info->test_suite_name()) + "_" + info->name());
-    std::filesystem::remove_all(d);
-    std::filesystem::create_directories(d);
-    return d.string();
-}
+// A fresh scratch folder named after the running test (and the process), removed at the end.
+struct ScratchDir {
+    std::string path;
+    ScratchDir()
+    {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        std::string name = "vdb_isosimp_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name();
+        std::replace(name.begin(), name.end(), '/', '_');
+        path = (std::filesystem::temp_directory_path() / name).string();
+        std::filesystem::remove_all(path);
+        std::filesystem::create_directories(path);
+    }
+    ~ScratchDir() { std::filesystem::remove_all(path); }
+};
 
 // Nothing in `dir` but what `keep` names (no mesh, no temporary file left by a failed run).
 inline std::string unexpectedFiles(const std::string& dir, const std::vector<std::string>& keep)

@@ -75,6 +75,10 @@ struct Options {
     // to Mesh::attributes in this order. File input only (simplifyFile); every name is checked before
     // any work (InputError for a missing or non-numeric grid).
     std::vector<std::string> attributes;
+    // W > 0: the decimator also keeps the first attribute's detail (a float or double grid): each face
+    // adds an attribute quadric (Hoppe 1999) and a collapse costs its geometric error plus W^2 times
+    // the attribute's error, W in attribute units per world unit. 0 (default): geometry only.
+    double attributeWeight = 0.0;
 };
 
 // Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget

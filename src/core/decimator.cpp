@@ -78,6 +78,10 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         if (id >= mDrift.size()) mDrift.emplace_back();
         mDrift[id] = 0.0f;
     }
+    if (mAttrWeight2 > 0) {
+        if (id >= mAttrQ.size()) mAttrQ.emplace_back();
+        mAttrQ[id] = AttributeQuadric{};
+    }
     VertexMeta& v = mMeta[id];
     ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
     ++v.ring;
@@ -179,10 +183,10 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
     size_t n = 0;
     V3 y;
     if (q.optimum(y)) {
-        out[n++] = {y, 0};
-        // The optimum is the cheapest point there is.
-        if (cheapestOnly) {
-            out[0].cost = std::max(0.0, q.error(y));
+        out[n++] = {y, 0, 0};
+        // The optimum is the cheapest point there is (of the geometry: an attribute may prefer another).
+        if (cheapestOnly && !(mAttrWeight2 > 0)) {
+            out[0].cost = out[0].geoCost = std::max(0.0, q.error(y));
             return 1;
         }
     }
@@ -191,13 +195,19 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
     const double bd = q.q[3] * d[0] + q.q[6] * d[1] + q.q[8] * d[2];
     if (dAd > 0) {
         const double t = -bd / dAd;
-        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0};
+        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0, 0};
     }
-    out[n++] = {{0, 0, 0}, 0};
-    out[n++] = {d, 0};
-    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0};
+    out[n++] = {{0, 0, 0}, 0, 0};
+    out[n++] = {d, 0, 0};
+    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0, 0};
+    AttributeQuadric attr;
+    if (mAttrWeight2 > 0) {
+        attr = mAttrQ[a];
+        attr += mAttrQ[b].shifted(sub(va.p, vb.p));
+    }
     for (size_t i = 0; i < n; ++i) {
-        out[i].cost = std::max(0.0, q.error(out[i].p));
+        out[i].geoCost = std::max(0.0, q.error(out[i].p));
+        out[i].cost = out[i].geoCost + (mAttrWeight2 > 0 ? mAttrWeight2 * attr.error(out[i].p) : 0.0);
         out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
     }
     // Cheapest first; ties keep the order above.
@@ -320,6 +330,16 @@ void Decimator::addBlock(const BlockMesh& block)
                 mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), weight);
                 mGeom[x].q.addPoint(kAnchorWeight * weight);
             }
+            if (mAttrWeight2 > 0 && !block.attribute.empty()) {
+                // The attribute, linear over the face: its gradient in the face's plane from the corner
+                // values (each corner's value times the edge opposite it, turned a quarter in the plane).
+                const double a0 = block.attribute[t[0]], a1 = block.attribute[t[1]], a2 = block.attribute[t[2]];
+                const V3 e0 = cross(u, sub(p2, p1)), e1 = cross(u, sub(p0, p2)), e2 = cross(u, sub(p1, p0));
+                V3 grad;
+                for (int k = 0; k < 3; ++k) grad[size_t(k)] = (a0 * e0[size_t(k)] + a1 * e1[size_t(k)] + a2 * e2[size_t(k)]) / len;
+                const double values[3] = {a0, a1, a2};
+                for (int k = 0; k < 3; ++k) mAttrQ[v[size_t(k)]].addFace(grad, values[k], weight);
+            }
         }
     }
     for (size_t i = 0; i < block.keys.size(); ++i)
@@ -355,11 +375,11 @@ void Decimator::absorb(Decimator& other)
             VertexGeom& mine = mGeom[it->second];
             const VertexGeom& theirs = other.mGeom[id];
             mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
-            copyDrift(it->second, other, id);
+            copyExtras(it->second, other, id);
         } else {
             remap[id] = newVertex(other.mGeom[id].p);
             mGeom[remap[id]].q = other.mGeom[id].q;
-            copyDrift(remap[id], other, id);
+            copyExtras(remap[id], other, id);
             mOpen.emplace(key, remap[id]);
         }
     }
@@ -369,7 +389,7 @@ void Decimator::absorb(Decimator& other)
         if (other.mMeta[v].alive && remap[v] == UINT32_MAX) {
             remap[v] = newVertex(other.mGeom[v].p);
             mGeom[remap[v]].q = other.mGeom[v].q;
-            copyDrift(remap[v], other, v);
+            copyExtras(remap[v], other, v);
             mMeta[remap[v]].final = other.mMeta[v].final;
         }
         if ((v + 1) % kVertChunk == 0) {
@@ -543,6 +563,11 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
     VertexGeom& gk = mGeom[keep];
     const VertexGeom& gg = mGeom[gone];
     gk.q = edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p));
+    if (mAttrWeight2 > 0) {
+        AttributeQuadric& ak = mAttrQ[keep];
+        ak += mAttrQ[gone].shifted(sub(gk.p, gg.p));
+        ak = ak.shifted(sub(target, gk.p));
+    }
     gk.p = target;
     ++vk.version;
     ++vk.ring;
@@ -609,9 +634,11 @@ double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit)
     return std::sqrt(farthest(after, before, farthest(before, after, 0.0)));
 }
 
-void Decimator::copyDrift(uint32_t mine, const Decimator& other, uint32_t theirs)
+void Decimator::copyExtras(uint32_t mine, const Decimator& other, uint32_t theirs)
 {
     if (mMaxError < HUGE_VAL && theirs < other.mDrift.size()) mDrift[mine] = std::max(mDrift[mine], other.mDrift[theirs]);
+    if (mAttrWeight2 > 0 && theirs < other.mAttrQ.size())
+        mAttrQ[mine] += other.mAttrQ[theirs].shifted(sub(mGeom[mine].p, other.mGeom[theirs].p));
 }
 
 Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
@@ -628,7 +655,7 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     if (place == count) return Outcome::Refused;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
-    double moved = displacement(a, b, places[place].cost);
+    double moved = displacement(a, b, places[place].geoCost);
     // Under a bound, the quadric's plane distances are checked against the surface itself too: how
     // far the collapse moves the surface locally (fanDistance: a thin spike folded into its base costs
     // little on its nearly parallel side planes, yet moves its tip by its whole length), added to how
@@ -751,6 +778,7 @@ bool Decimator::openPinch(uint32_t f)
                 continue;
             }
             mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
+            if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
             ++mMeta[x].version;
             ++mMeta[x].ring;
             return true;

@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/attribute_quadric.h"
 #include "core/chunked_vector.h"
 #include "core/marching_cubes.h"
 #include "core/quad_heap.h"
@@ -83,6 +84,12 @@ public:
     // the plane weights (each face's area, at least 0.4 voxel faces); under a bound, also the distance
     // of both ends from the faces the collapse leaves (fanDistance). Infinity (default): no bound.
     void setMaxError(double error) { mMaxError = error; }
+    // Weight W of an attribute's error against the geometric error (attribute units per world unit):
+    // with W > 0 each face also adds an attribute quadric (attribute_quadric.h) from the values of
+    // BlockMesh::attribute at its corners, and a collapse costs its geometric error plus W^2 times its
+    // attribute error, so collapses across a front of the attribute wait. Set before any block.
+    void setAttributeWeight(double weight) { mAttrWeight2 = weight * weight; }
+
     // Largest estimated displacement of a collapse made so far (same estimate; without a bound, the
     // quadric part only).
     double maxErrorAccepted() const { return mMaxErrorAccepted; }
@@ -172,6 +179,7 @@ private:
     struct Placement {
         std::array<double, 3> p;
         double cost;
+        double geoCost;  // of which: the geometric quadric's part (the error bound's estimate reads it)
     };
     static constexpr size_t kPlacements = 5;
     // The candidates of edge ab, cheapest first; returns how many (at most kPlacements). With
@@ -194,8 +202,9 @@ private:
     // centroids and edge midpoints of the faces around a and b before from the faces after, and the
     // other way. Any result above `limit` may stop the search early.
     double fanDistance(uint32_t a, uint32_t b, const std::array<double, 3>& p, double limit) const;
-    // Slab merge under a bound: vertex `mine` keeps the larger drift of itself and `other`'s `theirs`.
-    void copyDrift(uint32_t mine, const Decimator& other, uint32_t theirs);
+    // Slab merge: vertex `mine` takes over what `other`'s vertex `theirs` carries beyond position and
+    // quadric (a welded seam vertex sums them): the larger drift under a bound, the attribute quadric.
+    void copyExtras(uint32_t mine, const Decimator& other, uint32_t theirs);
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
     // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier), or when it
     // moves the surface by more than the error bound (TooFar).
@@ -235,6 +244,8 @@ private:
     // Under a bound, per vertex: how far the surface around it may have moved from the full-resolution
     // one, the sum of the local displacements of the collapses that made it (empty without a bound).
     ChunkedVector<float> mDrift;
+    double mAttrWeight2 = 0.0;
+    ChunkedVector<AttributeQuadric> mAttrQ;  // per vertex, written around it; empty without a weight
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;

@@ -35,6 +35,7 @@ public:
         // the mesh above B.
         mInitial = ratio < o.initialRatio && !(o.maxError > 0);
         if (o.maxError > 0) mDec.setMaxError(o.maxError);
+        if (o.attributeWeight > 0) mDec.setAttributeWeight(o.attributeWeight);
     }
 
     void add(const BlockMesh& b)

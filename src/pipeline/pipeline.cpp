@@ -54,6 +54,7 @@ void checkOptions(const Options& o)
         throw InputError(s.str());
     }
     if (o.batchFaces < 1000) throw InputError("batch must be at least 1000 faces");
+    if (!(o.attributeWeight >= 0.0 && o.attributeWeight < HUGE_VAL)) throw InputError("attribute weight must be finite and >= 0");
     if (!(o.initialRatio > 0.0 && o.initialRatio <= 1.0)) throw InputError("initial ratio must be in (0, 1]");
     if (o.threads < 0) throw InputError("threads must be >= 0");
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
@@ -150,6 +151,14 @@ void PipelineRun::openVolume(const VolumeOpener& open)
     mInfo = mVol->info();
     // Attribute grids are checked now, before any voxel is read; they are read after the final pass.
     mAttributes = std::make_unique<AttributeSampler>(mInfo.file, mOpt.attributes);
+    // A weighted attribute is sampled at every vertex as blocks are extracted: its grid is read now.
+    if (mOpt.attributeWeight > 0) {
+        if (mOpt.attributes.empty()) throw InputError("an attribute weight needs an attribute grid");
+        if (!mAttributes->firstIsScalar())
+            throw InputError(mInfo.file + ": grid '" + mOpt.attributes.front() +
+                             "' is a vector grid; an attribute weight takes a float or double grid");
+        mAttributes->load();
+    }
     // On this open, not one of its own: reading the topology of a large file takes a while.
     if (mOpt.maxMemoryBytes > 0) checkMemoryBudget(mPath, mInfo, mOpt, mOpt.maxMemoryBytes);
     Report& rep = mResult.report;
@@ -291,6 +300,7 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     m.minValue = *mm.first;
     m.maxValue = *mm.second;
     extractBlock(s, mCls, mInfo.indexToWorld, mFlip, m);
+    if (mOpt.attributeWeight > 0) mAttributes->sampleFirst(m.positions, m.attribute);
     const int32_t seamZ = mSlabs[si].zStart;
     if (si > 0 && mBlocks[i][2] == seamZ)
         for (size_t v = 0; v < m.keys.size(); ++v) {

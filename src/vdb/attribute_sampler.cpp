@@ -77,6 +77,8 @@ AttributeSampler::AttributeSampler(const std::string& path, const std::vector<st
         if (!numeric(*found))
             throw InputError(path + ": grid '" + name + "' has value type " + found->valueType() +
                              "; attributes are float, double or vec3 grids");
+        if (&name == &mNames.front())
+            mFirstScalar = found->isType<openvdb::FloatGrid>() || found->isType<openvdb::DoubleGrid>();
     }
 }
 
@@ -92,6 +94,20 @@ void AttributeSampler::load()
         mGrids.clear();
         throw InputError(mPath + ": cannot read the attribute grids (" + e.what() + ")");
     }
+}
+
+void AttributeSampler::sampleFirst(const std::vector<std::array<double, 3>>& points, std::vector<double>& out) const
+{
+    out.resize(points.size());
+    const auto run = [&](const auto& grid) {
+        auto acc = grid.getConstAccessor();
+        const openvdb::math::Transform& xform = grid.transform();
+        for (size_t i = 0; i < points.size(); ++i)
+            out[i] = double(openvdb::tools::BoxSampler::sample(acc, xform.worldToIndex(openvdb::Vec3d(points[i][0], points[i][1], points[i][2]))));
+    };
+    const openvdb::GridBase& g = *mGrids.front();
+    if (g.isType<openvdb::FloatGrid>()) run(static_cast<const openvdb::FloatGrid&>(g));
+    else run(static_cast<const openvdb::DoubleGrid&>(g));
 }
 
 std::vector<VertexAttribute> AttributeSampler::sample(const std::vector<std::array<float, 3>>& points) const

@@ -27,7 +27,15 @@ public:
     // trilinear), 1 or 3 floats per point. load() first.
     std::vector<VertexAttribute> sample(const std::vector<std::array<float, 3>>& points) const;
 
+    // Whether the first grid named holds one value per voxel (float or double), from the metadata.
+    bool firstIsScalar() const { return mFirstScalar; }
+
+    // The first grid's value at each world point, trilinear, into `out` (resized). Thread-safe; load()
+    // first.
+    void sampleFirst(const std::vector<std::array<double, 3>>& points, std::vector<double>& out) const;
+
 private:
+    bool mFirstScalar = false;
     std::string mPath;
     std::vector<std::string> mNames;
     std::vector<openvdb::GridBase::Ptr> mGrids;
