@@ -301,15 +301,17 @@ int main(int argc, char** argv)
     auto* maxErrorOpt = app.add_option("--max-error", opt.maxError,
                    "E, in world units: no collapse may move the surface by more than E, in the passes during\n"
                    "extraction as in the final one. Alone, E decides the face count; with --ratio or --faces,\n"
-                   "whichever stops first. The estimate of a collapse's displacement is sqrt(cost / weight):\n"
-                   "the area-weighted RMS distance of the new vertex from the planes of the faces merged into\n"
-                   "it (each face weighs its area, at least 0.4 voxel faces). The report gives the largest\n"
-                   "accepted (max_error_accepted)");
+                   "whichever stops first. A collapse's displacement is estimated as the larger of\n"
+                   "sqrt(cost / weight), the area-weighted RMS distance of the new vertex from the planes of\n"
+                   "the faces merged into it (each face weighs its area, at least 0.4 voxel faces), and the\n"
+                   "surface's local change (corners, centroids and edge midpoints of the faces around the\n"
+                   "edge, before against after and back) added to the drift either end already carries.\n"
+                   "The report gives the largest accepted (max_error_accepted)");
     std::vector<double> lods;
     auto* lodsOpt = app.add_option("--lods", lods,
                    "R1,R2,...: a chain of levels of detail from one run, rates decreasing in (0,1]. Writes\n"
                    "STEM_lod0.EXT, STEM_lod1.EXT, ... (STEM and EXT from -o): extraction decimates at R1, the\n"
-                   "final pass writes R1, continues to R2, writes it, and so on. Not with --faces")
+                   "final pass writes R1, continues to R2, writes it, and so on. Not with --ratio or --faces")
                         ->delimiter(',');
     std::vector<std::string> attributes;
     app.add_option("--attributes", opt.attributes,
