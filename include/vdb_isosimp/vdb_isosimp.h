@@ -58,10 +58,12 @@ struct Options {
     // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
     uint64_t maxMemoryBytes = 0;
     // E > 0: an error bound in world units. No collapse (in the passes during extraction or in the
-    // final one) may move the surface by more than E, estimated as sqrt(cost / weight): the
-    // area-weighted RMS distance of the new vertex from the planes of the faces merged into it (each
-    // face weighs its area, at least 0.4 of a voxel face). With ratio or targetFaces as well, whichever
-    // stops first wins; ratio = 0 with E > 0 means E alone. 0 (default): no bound.
+    // final one) may move the surface by more than E, estimated as the larger of sqrt(cost / weight),
+    // the area-weighted RMS distance of the new vertex from the planes of the faces merged into it
+    // (each face weighs its area, at least 0.4 of a voxel face), and the surface's local change around
+    // the edge (faces before against after, both ways) added to the drift its ends already carry. With
+    // ratio or targetFaces as well, whichever stops first wins; ratio = 0 with E > 0 means E alone.
+    // 0 (default): no bound.
     double maxError = 0.0;
     // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
     // level: extraction decimates at lods[0], the final pass decimates to each rate in turn and hands
