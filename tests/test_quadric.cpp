@@ -1,5 +1,7 @@
 // The error quadric (core/quadric.h) against direct geometry: squared distances to its planes, the
-// shift of the point it is written around, and the optimum where planes meet.
+// shift of the point it is written around, and the optimum where planes meet. The attribute quadric
+// (core/attribute_quadric.h) against the variance of its faces' linear predictions, computed directly.
+#include "core/attribute_quadric.h"
 #include "core/quadric.h"
 
 #include <gtest/gtest.h>
@@ -76,4 +78,47 @@ TEST(Quadric, NoOptimumAlongAnEdgeOrOnAPlane)
     EXPECT_NEAR(p[0], 1.0, 1e-2);
     EXPECT_NEAR(p[1], 2.0, 1e-2);
     EXPECT_NEAR(p[2], 0.0, 1e-9);
+}
+
+TEST(AttributeQuadric, ErrorIsTheWeightedVarianceOfTheFacesPredictions)
+{
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    struct Face { std::array<double, 3> g; double d, w; };
+    std::vector<Face> faces;
+    AttributeQuadric q;
+    for (int i = 0; i < 7; ++i) {
+        const Face f{{u(rng), u(rng), u(rng)}, u(rng), 0.5 + u(rng) * 0.4};
+        faces.push_back(f);
+        q.addFace(f.g, f.d, f.w);
+    }
+    for (int t = 0; t < 20; ++t) {
+        const std::array<double, 3> p{u(rng) * 3, u(rng) * 3, u(rng) * 3};
+        double sw = 0, mean = 0;
+        for (const Face& f : faces) {
+            sw += f.w;
+            mean += f.w * (dot(f.g, p) + f.d);
+        }
+        mean /= sw;
+        double variance = 0;
+        for (const Face& f : faces) variance += f.w * (dot(f.g, p) + f.d - mean) * (dot(f.g, p) + f.d - mean);
+        EXPECT_NEAR(q.error(p), variance, 1e-9 * (1 + variance));
+        // Written around another point, the same quadric gives the same error at the same place.
+        const std::array<double, 3> delta{u(rng), u(rng), u(rng)};
+        EXPECT_NEAR(q.shifted(delta).error({p[0] - delta[0], p[1] - delta[1], p[2] - delta[2]}), variance, 1e-9 * (1 + variance));
+    }
+}
+
+TEST(AttributeQuadric, OneLinearFieldCostsNothingAFrontDoes)
+{
+    // Faces sampling one linear field agree everywhere; two sides of a front do not.
+    AttributeQuadric same, front;
+    const std::array<double, 3> g{0.3, -0.2, 0.1};
+    for (double w : {1.0, 2.0, 0.5}) same.addFace(g, 1.5, w);
+    front.addFace({0, 0, 0}, -1.0, 1.0);
+    front.addFace({0, 0, 0}, 1.0, 1.0);
+    for (const std::array<double, 3>& p : {std::array<double, 3>{0, 0, 0}, {2, -1, 4}}) {
+        EXPECT_NEAR(same.error(p), 0.0, 1e-12);
+        EXPECT_NEAR(front.error(p), 2.0, 1e-12);  // values -1 and 1 around their mean 0, weight 1 each
+    }
 }
