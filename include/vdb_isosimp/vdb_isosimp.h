@@ -177,14 +177,17 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
 
 // Receives the final mesh in pieces: begin() once with the finished report (vertsOut, facesOut give
 // the counts), then vertices() until all points are delivered, then triangles() (indices into the
-// points, counter-clockwise seen from outside), then end(). Each piece's storage is valid only during
-// the call. Lets a caller convert or upload the mesh without holding a second full copy of it.
+// points, counter-clockwise seen from outside), then attribute() once per sampled grid, then end().
+// Each piece's storage is valid only during the call. Lets a caller convert or upload the mesh without
+// holding a second full copy of it.
 class MeshSink {
 public:
     virtual ~MeshSink() = default;
     virtual void begin(const Report& /*report*/) {}
     virtual void vertices(const std::array<float, 3>* points, size_t count) = 0;
     virtual void triangles(const std::array<uint32_t, 3>* triangles, size_t count) = 0;
+    // Each sampled attribute (Options::attributes) whole, after the triangles; ignored by default.
+    virtual void attribute(const VertexAttribute& /*values*/) {}
     virtual void end() {}
 };
 

@@ -37,6 +37,7 @@ void feed(Mesh&& mesh, const Report& report, MeshSink& sink)
     for (size_t i = 0; i < mesh.triangles.size(); i += kPiece)
         sink.triangles(mesh.triangles.data() + i, std::min(kPiece, mesh.triangles.size() - i));
     std::vector<std::array<uint32_t, 3>>().swap(mesh.triangles);
+    for (const VertexAttribute& a : mesh.attributes) sink.attribute(a);
     sink.end();
 }
 
