@@ -593,36 +593,50 @@ double Decimator::displacement(uint32_t a, uint32_t b, double cost) const
 double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit) const
 {
     // The faces around a and b before the collapse and after it (p in place of either end; the two
-    // faces on ab vanish). Both ways, each side's corners, centroids and edge midpoints against the
-    // other side: a collapse that flattens a bump or a dent keeps its corners on the surface but moves
-    // the middle of its faces.
-    using Tri = std::array<V3, 3>;
-    std::vector<Tri> before, after;
+    // faces on ab vanish). Both ways, each side's moving corners, centroids and the midpoints of its
+    // edges at a moving corner against the other side: a collapse that flattens a bump or a dent keeps
+    // its corners on the surface but moves the middle of its faces. (The other corners and the edges
+    // between them are on both sides.)
+    std::vector<FanFace>& before = mFanBefore;
+    std::vector<FanFace>& after = mFanAfter;
+    before.clear();
+    after.clear();
     for (const uint32_t end : {a, b})
         for (uint32_t c = mMeta[end].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
             const auto& fv = mFaces[c / 3].v;
             const bool hasA = fv[0] == a || fv[1] == a || fv[2] == a, hasB = fv[0] == b || fv[1] == b || fv[2] == b;
             if (end == b && hasA) continue;  // seen from a already
-            before.push_back({mGeom[fv[0]].p, mGeom[fv[1]].p, mGeom[fv[2]].p});
+            FanFace old{{mGeom[fv[0]].p, mGeom[fv[1]].p, mGeom[fv[2]].p}, 0};
+            for (int k = 0; k < 3; ++k) old.moving |= uint8_t((fv[k] == a || fv[k] == b) << k);
+            before.push_back(old);
             if (hasA && hasB) continue;
-            Tri t;
-            for (int k = 0; k < 3; ++k) t[k] = fv[k] == a || fv[k] == b ? p : mGeom[fv[k]].p;
-            after.push_back(t);
+            FanFace now = old;
+            for (int k = 0; k < 3; ++k)
+                if (old.moving >> k & 1) now.t[k] = p;
+            after.push_back(now);
         }
     // Squared; stops early once the distance passes `limit` (the collapse is refused then anyway),
-    // and a sample stops looking once a face is nearer than the worst so far.
+    // and a sample stops looking once a face is nearer than the worst so far, trying first the face
+    // that corresponds to its own (the lists run in the same order).
     const double limit2 = limit * limit;
-    const auto farthest = [limit2](const std::vector<Tri>& from, const std::vector<Tri>& to, double worst) {
-        for (const Tri& t : from) {
-            const V3 samples[7] = {t[0], t[1], t[2],
-                                   {(t[0][0] + t[1][0] + t[2][0]) / 3, (t[0][1] + t[1][1] + t[2][1]) / 3, (t[0][2] + t[1][2] + t[2][2]) / 3},
-                                   {(t[0][0] + t[1][0]) / 2, (t[0][1] + t[1][1]) / 2, (t[0][2] + t[1][2]) / 2},
-                                   {(t[1][0] + t[2][0]) / 2, (t[1][1] + t[2][1]) / 2, (t[1][2] + t[2][2]) / 2},
-                                   {(t[2][0] + t[0][0]) / 2, (t[2][1] + t[0][1]) / 2, (t[2][2] + t[0][2]) / 2}};
-            for (const V3& q : samples) {
+    const auto farthest = [limit2](const std::vector<FanFace>& from, const std::vector<FanFace>& to, double worst) {
+        const auto mid = [](const V3& x, const V3& y) { return V3{(x[0] + y[0]) / 2, (x[1] + y[1]) / 2, (x[2] + y[2]) / 2}; };
+        for (size_t i = 0; i < from.size(); ++i) {
+            const Tri& t = from[i].t;
+            V3 samples[6];
+            int n = 0;
+            samples[n++] = {(t[0][0] + t[1][0] + t[2][0]) / 3, (t[0][1] + t[1][1] + t[2][1]) / 3, (t[0][2] + t[1][2] + t[2][2]) / 3};
+            for (int k = 0; k < 3; ++k) {
+                const bool moving = from[i].moving >> k & 1, nextMoving = from[i].moving >> ((k + 1) % 3) & 1;
+                if (moving) samples[n++] = t[k];
+                if (moving || nextMoving) samples[n++] = mid(t[k], t[(k + 1) % 3]);
+            }
+            const size_t start = std::min(i, to.size() - 1);
+            for (int s = 0; s < n; ++s) {
                 double nearest = HUGE_VAL;
-                for (const Tri& u : to) {
-                    nearest = std::min(nearest, pointTriangleDistance2(q, u[0], u[1], u[2]));
+                for (size_t j = 0; j < to.size(); ++j) {
+                    const Tri& u = to[(start + j) % to.size()].t;
+                    nearest = std::min(nearest, pointTriangleDistance2(samples[s], u[0], u[1], u[2]));
                     if (nearest <= worst) break;
                 }
                 worst = std::max(worst, nearest);
@@ -631,6 +645,7 @@ double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit)
         }
         return worst;
     };
+    if (after.empty()) return HUGE_VAL;  // nothing would be left of the fan
     return std::sqrt(farthest(after, before, farthest(before, after, 0.0)));
 }
 
@@ -701,6 +716,12 @@ size_t Decimator::decimateTo(size_t targetFaces)
             continue;
         }
         ++mAttempts;
+        // The queued cost bounds every placement's from below (of the geometry; an attribute's part
+        // would not): past the error bound already, the pair waits without the topology checks.
+        if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
+            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring});
+            continue;
+        }
         double cost;
         switch (collapse(a, b, c.cost(), &cost)) {
         case Outcome::Collapsed: ++collapses; break;

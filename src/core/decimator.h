@@ -251,6 +251,12 @@ private:
     uint64_t mPolls = 0;
     uint32_t mStamp = 0;
     std::vector<uint32_t> mScratchA, mScratchB;
+    using Tri = std::array<std::array<double, 3>, 3>;
+    struct FanFace {
+        Tri t;
+        uint8_t moving;  // bit k: corner k is an end of the edge (before) or the new vertex (after)
+    };
+    mutable std::vector<FanFace> mFanBefore, mFanAfter;  // fanDistance's faces, kept to spare allocations
 };
 
 } // namespace vdb_isosimp
