@@ -176,6 +176,23 @@ class ErrorBoundAndAttributes(unittest.TestCase):
             vdb_isosimp.simplify(vdb, attributes=["missing"])
 
 
+class LevelsOfDetail(unittest.TestCase):
+    def test_lods_match_program_levels(self):
+        vdb = make_volume("torus", 64)
+        out = os.path.join(TMP, "chain.ply")
+        rep = run_program(vdb, out, "--lods", "0.3,0.1,0.03")
+        levels, r = vdb_isosimp.simplify(vdb, lods=[0.3, 0.1, 0.03])
+        self.assertEqual(len(levels), 3)
+        for i, (v, f) in enumerate(levels):
+            pv, pf = read_binary_ply(os.path.join(TMP, "chain_lod%d.ply" % i))
+            np.testing.assert_array_equal(v, pv)
+            np.testing.assert_array_equal(f, pf.astype(np.uint32))
+            self.assertEqual(r["lod%d_faces_out" % i], len(f))
+        self.assertEqual(sorted(r.keys()), sorted(k for k in rep if k != "output"))
+        with self.assertRaises(vdb_isosimp.InputError):
+            vdb_isosimp.simplify(vdb, lods=[0.1, 0.3])
+
+
 class Behaviour(unittest.TestCase):
     def test_errors(self):
         with self.assertRaises(vdb_isosimp.InputError) as e:

@@ -112,7 +112,7 @@ py::dict attributeArrays(std::vector<VertexAttribute>&& attributes)
 
 py::tuple simplify(py::object source, const std::string& grid, std::optional<double> iso, std::optional<double> ratio,
                    uint64_t faces, uint64_t batch, int threads, py::object progress, double maxError,
-                   const std::vector<std::string>& attributes)
+                   const std::vector<std::string>& attributes, const std::vector<double>& lods)
 {
     Options o;
     o.gridName = grid;
@@ -121,6 +121,10 @@ py::tuple simplify(py::object source, const std::string& grid, std::optional<dou
     o.ratio = ratio ? *ratio : (maxError > 0 && faces == 0 ? 0.0 : o.ratio);
     o.maxError = maxError;
     o.attributes = attributes;
+    o.lods = lods;
+    // Each level is copied as it is made (the library lets it go after the call).
+    std::vector<Mesh> levels;
+    if (!lods.empty()) o.onLevel = [&levels](const LevelOfDetail& l) { levels.push_back(l.mesh); };
     o.targetFaces = faces;
     o.batchFaces = batch;
     o.threads = threads;
@@ -150,6 +154,16 @@ py::tuple simplify(py::object source, const std::string& grid, std::optional<dou
         throw;
     }
     py::dict report = reportDict(res.report, o);
+    if (!lods.empty()) {
+        py::list out;
+        for (Mesh& m : levels) {
+            if (attributes.empty()) out.append(py::make_tuple(toArray(std::move(m.points)), toArray(std::move(m.triangles))));
+            else
+                out.append(py::make_tuple(toArray(std::move(m.points)), toArray(std::move(m.triangles)),
+                                          attributeArrays(std::move(m.attributes))));
+        }
+        return py::make_tuple(out, report);
+    }
     if (!attributes.empty())
         return py::make_tuple(toArray(std::move(res.mesh.points)), toArray(std::move(res.mesh.triangles)), report,
                               attributeArrays(std::move(res.mesh.attributes)));
@@ -200,7 +214,7 @@ PYBIND11_MODULE(vdb_isosimp, m)
     m.def("simplify", &simplify, py::arg("source"), py::kw_only(), py::arg("grid") = "",
           py::arg("iso") = py::none(), py::arg("ratio") = py::none(), py::arg("faces") = 0, py::arg("batch") = 100000,
           py::arg("threads") = 0, py::arg("progress") = py::none(), py::arg("max_error") = 0.0,
-          py::arg("attributes") = std::vector<std::string>{},
+          py::arg("attributes") = std::vector<std::string>{}, py::arg("lods") = std::vector<double>{},
           R"doc(Extract and simplify the iso-surface of a scalar OpenVDB grid.
 
 source   path of a .vdb file (str or os.PathLike), or a pyopenvdb FloatGrid/DoubleGrid (read only)
@@ -212,12 +226,14 @@ faces    if > 0: keep this many faces instead of `ratio`
 max_error  if > 0: no collapse moves the surface by more than this (world units; see --max-error);
          with ratio or faces, whichever stops first
 attributes list of grid names of the file (float, double, vec3) sampled trilinearly at every vertex
+lods     decreasing rates in (0, 1]: a chain of levels of detail from one run (ratio and faces unused)
 batch    faces extracted between two decimations (default 100000)
 threads  worker threads, 0 = all cores; the result does not depend on it
 progress callable(fraction, faces_kept); returning False cancels (raises Cancelled)
 
 Returns (vertices float32 (N, 3), faces uint32 (M, 3), report dict), and with attributes a fourth
 element: a dict of float32 arrays by grid name, (N,) for a scalar grid, (N, 3) for a vec3 grid.
+With lods: (levels, report), levels a list of (vertices, faces[, attributes]), finest first.
 Raises InputError (a
 ValueError) for bad input, EmptySurfaceError (a ValueError) when the iso-value cuts nothing,
 Cancelled when stopped; Ctrl-C stops a run too.)doc");
