@@ -47,8 +47,8 @@ void checkOptions(const Options& o)
     }
     checkLods(o);
     // Ratio 0 is no face target: the error bound alone decides.
-    if (o.ratio == 0.0 && o.maxError > 0.0) {
-    } else if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
+    const bool errorAlone = o.ratio == 0.0 && o.maxError > 0.0;
+    if (!errorAlone && !(o.ratio > 0.0 && o.ratio <= 1.0)) {
         std::ostringstream s;
         s << "ratio must be in (0, 1], got " << o.ratio;
         throw InputError(s.str());
