@@ -161,6 +161,16 @@ std::string stemOf(const std::string& path)
     return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
 }
 
+// STEM_lodI.EXT for OUT = STEM.EXT (the folder kept): level I of a LOD chain.
+std::string levelPath(const std::string& output, size_t level)
+{
+    const auto slash = output.find_last_of('/');
+    const auto dot = output.find_last_of('.');
+    const bool hasExt = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+    const std::string stem = hasExt ? output.substr(0, dot) : output, ext = hasExt ? output.substr(dot) : "";
+    return stem + "_lod" + std::to_string(level) + ext;
+}
+
 std::string reportJson(const Report& r, const std::string& output, const Options& o)
 {
     std::ostringstream j;
@@ -267,16 +277,40 @@ int meshOne(const RunPaths& p, const Options& opt, const OutputChoices& out, Ter
     const std::string& tracePath = p.trace;
     const bool quiet = out.quiet;
     const bool writer = !out.mpi || out.mpi->rank() == 0;
+    // The levels of a chain are written beside the output name: STEM_lod0.EXT, ...
+    std::vector<std::string> levelPaths;
+    for (size_t i = 0; i < opt.lods.size(); ++i) levelPaths.push_back(levelPath(output, i));
     try {
         formatForPath(output, out.ascii);  // an unsupported extension fails before the long run
-        if (writer) probeWritable(output);
-        std::vector<std::string> temporaries{temporaryPathFor(output)};
+        std::vector<std::string> temporaries;
+        for (const std::string& t : levelPaths.empty() ? std::vector<std::string>{output} : levelPaths) {
+            if (writer) probeWritable(t);
+            temporaries.push_back(temporaryPathFor(t));
+        }
         for (const std::string* t : {&reportPath, &tracePath})
             if (!t->empty()) temporaries.push_back(temporaryPathFor(*t));
         Watchdog watchdog(temporaries);
         const bool showBar = writer && !quiet && ::isatty(STDERR_FILENO);
         RunProgress progress(showBar ? &bar : nullptr);
-        Result res = out.mpi ? out.mpi->simplifyFile(input, opt, &progress) : simplifyFile(input, opt, &progress);
+        WriteOptions wo;
+        wo.ascii = out.ascii;
+        wo.normals = out.normals;
+        Options run = opt;
+        // Each level is written as soon as it is made, so only one level's mesh is held at a time.
+        if (writer && !levelPaths.empty())
+            run.onLevel = [&](const LevelOfDetail& level) {
+                wo.objectName = level.run.grid;
+                wo.comment = "vdb_isosimp grid " + level.run.grid + " level " + std::to_string(level.index);
+                writeMesh(level.mesh, levelPaths[level.index], wo);
+                if (!quiet) {
+                    bar.clear();
+                    std::fprintf(stderr, "vdb_isosimp: level %zu: R=%.4g, %llu faces, %llu vertices, at %.2f s -> %s\n",
+                                 level.index, level.report.ratio, (unsigned long long)level.report.facesOut,
+                                 (unsigned long long)level.report.vertsOut, level.report.seconds,
+                                 levelPaths[level.index].c_str());
+                }
+            };
+        Result res = out.mpi ? out.mpi->simplifyFile(input, run, &progress) : simplifyFile(input, run, &progress);
         bar.clear();
         if (gSignal.load()) throw Cancelled("interrupted");
         const Report& r = res.report;
@@ -290,18 +324,16 @@ int meshOne(const RunPaths& p, const Options& opt, const OutputChoices& out, Ter
         else if (r.isoDefaulted && !quiet)
             std::fprintf(stderr, "vdb_isosimp: no --iso given for %s grid '%s': iso-value %g (the midpoint of its value range) from frame %d, used for every frame\n",
                          r.gridClass.c_str(), r.grid.c_str(), r.iso, p.frame);
-        WriteOptions wo;
-        wo.ascii = out.ascii;
-        wo.normals = out.normals;
         wo.objectName = r.grid;
         wo.comment = "vdb_isosimp grid " + r.grid;
-        writeMesh(res.mesh, output, wo);
+        if (levelPaths.empty()) writeMesh(res.mesh, output, wo);
         if (!reportPath.empty()) writeText(reportPath, reportJson(r, output, opt));
         if (!tracePath.empty()) writeText(tracePath, traceCsv(r));
         if (!quiet)
             std::fprintf(stderr, "vdb_isosimp: %s, grid '%s': %llu -> %llu faces (R=%.4g), %llu vertices, %.2f s, peak %.0f MB -> %s\n",
                          input.c_str(), r.grid.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
-                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb, output.c_str());
+                         (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb,
+                         levelPaths.empty() ? output.c_str() : levelPaths.back().c_str());
         if (done) *done = r;
         return 0;
     } catch (const MemoryBudgetError& e) {
@@ -451,17 +483,62 @@ int main(int argc, char** argv)
                    "machine's physical memory, or the container's limit when lower")
         ->default_val(maxMemory);
 
+    auto* maxErrorOpt = app.add_option("--max-error", opt.maxError,
+                   "E, in world units: no collapse may move the surface by more than E, in the passes during\n"
+                   "extraction as in the final one. Alone, E decides the face count; with --ratio or --faces,\n"
+                   "whichever stops first. A collapse's displacement is estimated as the larger of\n"
+                   "sqrt(cost / weight), the area-weighted RMS distance of the new vertex from the planes of\n"
+                   "the faces merged into it (each face weighs its area, at least 0.25 voxel faces), and the\n"
+                   "surface's local change (corners, centroids and edge midpoints of the faces around the\n"
+                   "edge, before against after and back) added to the drift either end already carries.\n"
+                   "The report gives the largest accepted (max_error_accepted)");
+    std::vector<double> lods;
+    auto* lodsOpt = app.add_option("--lods", lods,
+                   "R1,R2,...: a chain of levels of detail from one run, rates decreasing in (0,1]. Writes\n"
+                   "STEM_lod0.EXT, STEM_lod1.EXT, ... (STEM and EXT from -o): extraction decimates at R1, the\n"
+                   "final pass writes R1, continues to R2, writes it, and so on. Not with --ratio or --faces")
+                        ->delimiter(',');
+    std::vector<std::string> attributes;
+    app.add_option("--attributes", opt.attributes,
+                   "NAME[,NAME...]: grids of the input (float, double, vec3) sampled trilinearly at every\n"
+                   "output vertex, each in its own index space (its own transform). PLY: vertex properties\n"
+                   "NAME (vec3: NAME_x NAME_y NAME_z); glTF: custom attributes _NAME. Not for .obj or .stl")
+        ->delimiter(',');
+    auto* weightOpt = app.add_option("--attribute-weight", opt.attributeWeight,
+                   "W > 0: the simplification also keeps the detail of the first --attributes grid (float or\n"
+                   "double): a collapse costs its geometric error plus W^2 times the attribute's error\n"
+                   "(Hoppe 1999 attribute quadrics), W in attribute units per world unit");
+    lodsOpt->excludes(facesOpt);
+    lodsOpt->excludes(ratioOpt);
+
     if (!writer) {  // rank 0 alone speaks (usage errors, help, the run's errors)
         std::cerr.setstate(std::ios::failbit);
         std::cout.setstate(std::ios::failbit);
     }
     if (const int code = parseCommandLine(app, argc, argv, "vdb_isosimp"); code >= 0) return code;
+    if (*maxErrorOpt && !(opt.maxError > 0.0 && std::isfinite(opt.maxError))) {
+        std::cerr << "vdb_isosimp: --max-error must be a finite number greater than 0 (see --help)\n";
+        return 2;
+    }
+    if (*weightOpt && (!(opt.attributeWeight > 0.0 && std::isfinite(opt.attributeWeight)) || opt.attributes.empty())) {
+        std::cerr << "vdb_isosimp: --attribute-weight must be a finite number greater than 0, with --attributes (see --help)\n";
+        return 2;
+    }
+    // E alone: no face target.
+    if (*maxErrorOpt && !*ratioOpt && !*facesOpt && !*lodsOpt) opt.ratio = 0.0;
+    for (size_t i = 0; i < lods.size(); ++i)
+        if (!(lods[i] > 0.0 && lods[i] <= 1.0) || (i > 0 && !(lods[i] < lods[i - 1]))) {
+            std::cerr << "vdb_isosimp: --lods: rates must decrease and lie in (0,1], got '" << lods[i] << "' at position "
+                      << i + 1 << " (see --help)\n";
+            return 2;
+        }
+    opt.lods = lods;
     if (*isoOpt) opt.iso = iso;
     if (*isoOpt && !std::isfinite(iso)) {
         std::cerr << "vdb_isosimp: --iso must be a finite number (see --help)\n";
         return 2;
     }
-    if (!(opt.ratio > 0.0)) {  // also NaN, which CLI11's range check lets through
+    if (!(opt.ratio > 0.0) && !(opt.ratio == 0.0 && opt.maxError > 0.0 && !*ratioOpt)) {  // also NaN, which CLI11's range check lets through
         std::cerr << "vdb_isosimp: --ratio must be greater than 0 (see --help)\n";
         return 2;
     }
@@ -476,6 +553,16 @@ int main(int argc, char** argv)
     else if (!parseMemorySize(maxMemory, opt.maxMemoryBytes)) {
         std::cerr << "vdb_isosimp: --max-memory: '" << maxMemory << "' is not a size (e.g. 8G, 512M, 0) (see --help)\n";
         return 2;
+    }
+    if (!opt.attributes.empty()) {
+        try {
+            if (!formatHoldsAttributes(formatForPath(output, ascii))) {
+                std::cerr << "vdb_isosimp: --attributes: " << output
+                          << ": OBJ and STL have no vertex attributes; write .ply or .glb (see --help)\n";
+                return 2;
+            }
+        } catch (const std::exception&) {
+        }  // an unsupported extension is reported below, as without attributes
     }
     if (ascii) {
         try {

@@ -138,6 +138,68 @@ class ModuleMatchesProgram(unittest.TestCase):
         np.testing.assert_allclose(np.linalg.norm(v - [1, 2, 3], axis=1), 10.0, atol=0.3)
 
 
+def read_ply_columns(path):
+    """Every vertex property of a binary PLY the program wrote, by name (float32 columns)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    names, nv, current = [], None, None
+    for line in data[:end].decode("ascii").splitlines():
+        w = line.split()
+        if w[:2] == ["element", "vertex"]:
+            nv, current = int(w[2]), "vertex"
+        elif w[:1] == ["element"]:
+            current = w[1]
+        elif w[:1] == ["property"] and current == "vertex":
+            names.append(w[2])
+    table = np.frombuffer(data, dtype="<f4", count=nv * len(names), offset=end).reshape(nv, len(names))
+    return {n: table[:, i] for i, n in enumerate(names)}
+
+
+class ErrorBoundAndAttributes(unittest.TestCase):
+    def test_max_error_matches_program(self):
+        vdb = make_volume("sphere", 40)
+        out = os.path.join(TMP, "bounded.ply")
+        rep = run_program(vdb, out, "--max-error", "0.1")
+        v, f, r = vdb_isosimp.simplify(vdb, max_error=0.1)
+        pv, pf = read_binary_ply(out)
+        np.testing.assert_array_equal(v, pv)
+        self.assertEqual(r["faces_out"], rep["faces_out"])
+        self.assertLessEqual(r["max_error_accepted"], 0.1)
+        self.assertEqual(sorted(r.keys()), sorted(k for k in rep if k != "output"))
+
+    def test_attributes_match_program(self):
+        # The meshed grid sampled at its own vertices: a fog's value there is about the iso-value.
+        vdb = make_volume("noise", 48)
+        out = os.path.join(TMP, "attributes.ply")
+        run_program(vdb, out, "--iso", "0.2", "--attributes", "noise")
+        v, f, r, attributes = vdb_isosimp.simplify(vdb, iso=0.2, attributes=["noise"])
+        columns = read_ply_columns(out)
+        self.assertEqual(attributes["noise"].shape, (len(v),))
+        self.assertEqual(attributes["noise"].dtype, np.float32)
+        np.testing.assert_array_equal(attributes["noise"], columns["noise"])
+        self.assertLess(abs(float(np.median(attributes["noise"])) - 0.2), 0.05)
+        with self.assertRaises(vdb_isosimp.InputError):
+            vdb_isosimp.simplify(vdb, attributes=["missing"])
+
+
+class LevelsOfDetail(unittest.TestCase):
+    def test_lods_match_program_levels(self):
+        vdb = make_volume("torus", 64)
+        out = os.path.join(TMP, "chain.ply")
+        rep = run_program(vdb, out, "--lods", "0.3,0.1,0.03")
+        levels, r = vdb_isosimp.simplify(vdb, lods=[0.3, 0.1, 0.03])
+        self.assertEqual(len(levels), 3)
+        for i, (v, f) in enumerate(levels):
+            pv, pf = read_binary_ply(os.path.join(TMP, "chain_lod%d.ply" % i))
+            np.testing.assert_array_equal(v, pv)
+            np.testing.assert_array_equal(f, pf.astype(np.uint32))
+            self.assertEqual(r["lod%d_faces_out" % i], len(f))
+        self.assertEqual(sorted(r.keys()), sorted(k for k in rep if k != "output"))
+        with self.assertRaises(vdb_isosimp.InputError):
+            vdb_isosimp.simplify(vdb, lods=[0.1, 0.3])
+
+
 class Behaviour(unittest.TestCase):
     def test_errors(self):
         with self.assertRaises(vdb_isosimp.InputError) as e:

@@ -94,13 +94,39 @@ private:
     std::unique_ptr<py::error_already_set> mError;
 };
 
-py::tuple simplify(py::object source, const std::string& grid, std::optional<double> iso, double ratio,
-                   uint64_t faces, uint64_t batch, int threads, py::object progress, double minComponent)
+// Attribute values as numpy arrays by name: (N,) for a scalar grid, (N, 3) for a vector grid.
+py::dict attributeArrays(std::vector<VertexAttribute>&& attributes)
+{
+    py::dict d;
+    for (VertexAttribute& a : attributes) {
+        auto* owned = new std::vector<float>(std::move(a.values));
+        py::capsule free(owned, [](void* p) { delete static_cast<std::vector<float>*>(p); });
+        const py::ssize_t rows = py::ssize_t(owned->size() / a.components);
+        if (a.components == 1)
+            d[a.name.c_str()] = py::array_t<float>({rows}, {py::ssize_t(sizeof(float))}, owned->data(), free);
+        else
+            d[a.name.c_str()] = py::array_t<float>({rows, py::ssize_t(a.components)},
+                                                   {py::ssize_t(sizeof(float) * a.components), py::ssize_t(sizeof(float))},
+                                                   owned->data(), free);
+    }
+    return d;
+}
+
+py::tuple simplify(py::object source, const std::string& grid, std::optional<double> iso, std::optional<double> ratio,
+                   uint64_t faces, uint64_t batch, int threads, py::object progress, double maxError,
+                   const std::vector<std::string>& attributes, const std::vector<double>& lods, double minComponent)
 {
     Options o;
     o.gridName = grid;
     o.iso = iso;
-    o.ratio = ratio;
+    // An error bound alone sets no face target.
+    o.ratio = ratio ? *ratio : (maxError > 0 && faces == 0 ? 0.0 : o.ratio);
+    o.maxError = maxError;
+    o.attributes = attributes;
+    o.lods = lods;
+    // Each level is copied as it is made (the library lets it go after the call).
+    std::vector<Mesh> levels;
+    if (!lods.empty()) o.onLevel = [&levels](const LevelOfDetail& l) { levels.push_back(l.mesh); };
     o.targetFaces = faces;
     o.batchFaces = batch;
     o.threads = threads;
@@ -131,6 +157,19 @@ py::tuple simplify(py::object source, const std::string& grid, std::optional<dou
         throw;
     }
     py::dict report = reportDict(res.report, o);
+    if (!lods.empty()) {
+        py::list out;
+        for (Mesh& m : levels) {
+            if (attributes.empty()) out.append(py::make_tuple(toArray(std::move(m.points)), toArray(std::move(m.triangles))));
+            else
+                out.append(py::make_tuple(toArray(std::move(m.points)), toArray(std::move(m.triangles)),
+                                          attributeArrays(std::move(m.attributes))));
+        }
+        return py::make_tuple(out, report);
+    }
+    if (!attributes.empty())
+        return py::make_tuple(toArray(std::move(res.mesh.points)), toArray(std::move(res.mesh.triangles)), report,
+                              attributeArrays(std::move(res.mesh.attributes)));
     return py::make_tuple(toArray(std::move(res.mesh.points)), toArray(std::move(res.mesh.triangles)), report);
 }
 
@@ -186,23 +225,32 @@ PYBIND11_MODULE(vdb_isosimp, m)
     (void)base;
 
     m.def("simplify", &simplify, py::arg("source"), py::kw_only(), py::arg("grid") = "",
-          py::arg("iso") = py::none(), py::arg("ratio") = 0.2, py::arg("faces") = 0, py::arg("batch") = 100000,
-          py::arg("threads") = 0, py::arg("progress") = py::none(), py::arg("min_component") = 0.0,
+          py::arg("iso") = py::none(), py::arg("ratio") = py::none(), py::arg("faces") = 0, py::arg("batch") = 100000,
+          py::arg("threads") = 0, py::arg("progress") = py::none(), py::arg("max_error") = 0.0,
+          py::arg("attributes") = std::vector<std::string>{}, py::arg("lods") = std::vector<double>{}, py::arg("min_component") = 0.0,
           R"doc(Extract and simplify the iso-surface of a scalar OpenVDB grid.
 
 source   path of a .vdb file (str or os.PathLike), or a pyopenvdb FloatGrid/DoubleGrid (read only)
 grid     grid to mesh in the file; '' = the first level set, else 'density', else the first float or
          double grid (ignored for a grid object)
 iso      iso-value; None = 0 for level sets, the midpoint of the value range for other grids
-ratio    decimation rate in (0, 1]: faces kept / faces of the full-resolution surface (default 0.2)
+ratio    decimation rate in (0, 1]: faces kept / faces of the full-resolution surface (default 0.2,
+         or none with max_error alone)
 faces    if > 0: keep this many faces instead of `ratio`
+max_error  if > 0: no collapse moves the surface by more than this (world units; see --max-error);
+         with ratio or faces, whichever stops first
+attributes list of grid names of the file (float, double, vec3) sampled trilinearly at every vertex
+lods     decreasing rates in (0, 1]: a chain of levels of detail from one run (ratio and faces unused)
 batch    faces extracted between two decimations (default 100000)
 threads  worker threads, 0 = all cores; the result does not depend on it
 progress callable(fraction, faces_kept); returning False cancels (raises Cancelled)
 min_component  if > 0: drop closed components of smaller area (world units squared) after the
          final pass; report['components_pruned'] counts them
 
-Returns (vertices float32 (N, 3), faces uint32 (M, 3), report dict). Raises InputError (a
+Returns (vertices float32 (N, 3), faces uint32 (M, 3), report dict), and with attributes a fourth
+element: a dict of float32 arrays by grid name, (N,) for a scalar grid, (N, 3) for a vec3 grid.
+With lods: (levels, report), levels a list of (vertices, faces[, attributes]), finest first.
+Raises InputError (a
 ValueError) for bad input, EmptySurfaceError (a ValueError) when the iso-value cuts nothing,
 Cancelled when stopped; Ctrl-C stops a run too.)doc");
 

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -286,6 +287,45 @@ TEST(Decimator, PieceBytesThatEndEarlyAreRefused)
     for (size_t cut : {size_t(0), size_t(7), bytes.size() / 2, bytes.size() - 1})
         EXPECT_THROW(readPieceBytes(bytes.data(), cut), std::runtime_error) << cut;
     EXPECT_NO_THROW(readPieceBytes(bytes.data(), bytes.size()));
+}
+
+TEST(Decimator, ErrorBoundHoldsOnASphere)
+{
+    // A finely subdivided sphere of radius 10 decimated as far as the bound allows: every vertex, face
+    // centroid and edge midpoint of the result stays within 2E of the sphere (checked on the geometry,
+    // not on the decimator's own estimate), and a smaller bound keeps more faces.
+    const auto farthest = [](const Mesh& m) {
+        const auto radius = [](std::array<double, 3> p) { return std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]); };
+        double worst = 0;
+        for (const auto& t : m.triangles) {
+            std::array<double, 3> c[3];
+            for (int k = 0; k < 3; ++k) c[k] = {m.points[t[k]][0], m.points[t[k]][1], m.points[t[k]][2]};
+            const std::array<double, 3> samples[] = {
+                c[0], {(c[0][0] + c[1][0] + c[2][0]) / 3, (c[0][1] + c[1][1] + c[2][1]) / 3, (c[0][2] + c[1][2] + c[2][2]) / 3},
+                {(c[0][0] + c[1][0]) / 2, (c[0][1] + c[1][1]) / 2, (c[0][2] + c[1][2]) / 2}};
+            for (const auto& q : samples) worst = std::max(worst, std::abs(radius(q) - 10.0));
+        }
+        return worst;
+    };
+    Decimator input;
+    input.addBlock(ellipsoid(5, {1, 1, 1}, 10.0));
+    // The input is a polyhedron inscribed in the sphere: its own faces sit slightly inside.
+    const double inscribed = farthest(input.mesh());
+    size_t previous = 0;
+    for (const double e : {0.2, 0.05, 0.01}) {
+        Decimator d;
+        d.setMaxError(e);
+        d.addBlock(ellipsoid(5, {1, 1, 1}, 10.0));
+        d.decimateTo(0);
+        EXPECT_LE(d.maxErrorAccepted(), e);
+        const Mesh m = d.mesh();
+        EXPECT_GT(m.triangles.size(), previous) << "E = " << e;
+        previous = m.triangles.size();
+        const double worst = farthest(m);
+        std::printf("E = %g: %zu faces, largest distance from the sphere %.4g (input %.4g)\n", e, m.triangles.size(), worst,
+                    inscribed);
+        EXPECT_LE(worst, 2 * e + inscribed) << "E = " << e;
+    }
 }
 
 // A closed octahedron around `centre`, every vertex final; keys start at `firstKey`.

@@ -10,6 +10,10 @@
 # every frame the pattern names as one object per frame, keyed to be visible on its frame only. The
 # frames are found and named by the library's rule (vdb_isosimp.frame_paths, or the program itself).
 #
+# "Max error" (if > 0) bounds how far simplification may move the surface, and then alone decides the face
+# count (the ratio is not used). "Attributes" names grids of the file (comma-separated) sampled at every
+# vertex, imported as point attributes; a sequence's frames all get them, with the same settings.
+#
 # Install: Edit > Preferences > Add-ons > Install... and pick this file. Where the module or program
 # live outside the default paths, set them in the add-on's preferences, or in the environment:
 # VDB_ISOSIMP_PYTHONPATH (folder holding vdb_isosimp.cpython-*.so) and VDB_ISOSIMP_EXE (the program).
@@ -65,13 +69,15 @@ def find_program():
     return shutil.which("vdb_isosimp")
 
 
-def read_binary_ply(path):
-    """Vertices (float32 N x 3) and triangles (int32 M x 3) of the binary PLY the program writes."""
+def read_binary_ply(path, attributes=()):
+    """Vertices (float32 N x 3), triangles (int32 M x 3) and the named attributes (a dict of float32
+    arrays, N or N x 3 for the NAME_x NAME_y NAME_z columns of a vector grid) of the binary PLY the
+    program writes."""
     with open(path, "rb") as f:
         data = f.read()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     nv = nf = 0
-    props = 0
+    names = []
     element = None
     for line in data[:end].decode("ascii", "replace").splitlines():
         w = line.split()
@@ -80,27 +86,78 @@ def read_binary_ply(path):
         elif w[:2] == ["element", "face"]:
             nf, element = int(w[2]), "face"
         elif w and w[0] == "property" and element == "vertex":
-            props += 1
-    verts = np.frombuffer(data, dtype="<f4", count=nv * props, offset=end).reshape(nv, props)[:, :3]
+            names.append(w[2])
+    table = np.frombuffer(data, dtype="<f4", count=nv * len(names), offset=end).reshape(nv, len(names))
     rec = np.dtype([("n", "u1"), ("i", "<i4", (3,))])
-    faces = np.frombuffer(data, dtype=rec, count=nf, offset=end + 4 * nv * props)["i"]
-    return verts, faces
+    faces = np.frombuffer(data, dtype=rec, count=nf, offset=end + 4 * nv * len(names))["i"]
+    values = {}
+    for name in attributes:
+        if name in names:
+            values[name] = table[:, names.index(name)].copy()
+        else:
+            values[name] = np.stack([table[:, names.index(name + "_" + c)] for c in "xyz"], axis=1)
+    return table[:, :3], faces, values
 
 
-def run_program(program, path, grid, iso, ratio):
+def program_command(program, path, out, report, grid, iso, ratio, max_error, attributes):
+    """The program's command line: `path`, `out` and `report` are files, or frame patterns for a sequence.
+    An error bound (max_error > 0) alone decides the face count; the ratio is then not given."""
+    cmd = [program, path, "-q", "-o", out, "--report", report]
+    if max_error > 0:
+        cmd += ["--max-error", repr(max_error)]
+    else:
+        cmd += ["--ratio", repr(ratio)]
+    if grid:
+        cmd += ["--grid", grid]
+    if iso is not None:
+        cmd += ["--iso", repr(iso)]
+    if attributes:
+        cmd += ["--attributes", ",".join(attributes)]
+    return cmd
+
+
+def read_program_output(ply, report, attributes):
+    """verts, faces, report and values (the sampled attributes) of one mesh the program wrote."""
+    verts, faces, values = read_binary_ply(ply, attributes)
+    with open(report) as f:
+        return verts, faces, json.load(f), values
+
+
+def run_program(program, path, grid, iso, ratio, max_error=0.0, attributes=()):
+    """One file through the program: verts, faces, report, values ({} without attributes)."""
     with tempfile.TemporaryDirectory() as tmp:
         out, report = os.path.join(tmp, "mesh.ply"), os.path.join(tmp, "report.json")
-        cmd = [program, path, "-q", "-o", out, "--report", report, "--ratio", repr(ratio)]
-        if grid:
-            cmd += ["--grid", grid]
-        if iso is not None:
-            cmd += ["--iso", repr(iso)]
+        cmd = program_command(program, path, out, report, grid, iso, ratio, max_error, attributes)
         done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         if done.returncode != 0:
             raise RuntimeError(done.stderr.strip() or "vdb_isosimp failed with exit code %d" % done.returncode)
-        verts, faces = read_binary_ply(out)
-        with open(report) as f:
-            return verts, faces, json.load(f)
+        return read_program_output(out, report, attributes)
+
+
+def run_module(module, path, grid, iso, ratio, max_error=0.0, attributes=(), progress=None):
+    """One file through the module: verts, faces, report, values ({} without attributes). As with the
+    program, an error bound (max_error > 0) alone decides the face count."""
+    result = module.simplify(path, grid=grid, iso=iso, ratio=None if max_error > 0 else ratio,
+                             max_error=max_error, attributes=list(attributes), progress=progress)
+    verts, faces, report = result[:3]
+    return verts, faces, report, (result[3] if attributes else {})
+
+
+def run_file(used, runner, path, grid, iso, ratio, max_error=0.0, attributes=(), progress=None):
+    """One file with the chosen back-end ("module": the module, "program": its path): verts, faces,
+    report, values. `progress` (fraction, faces kept) is called by the module only."""
+    if used == "module":
+        return run_module(runner, path, grid, iso, ratio, max_error, attributes, progress)
+    return run_program(runner, path, grid, iso, ratio, max_error, attributes)
+
+
+def add_attributes(mesh, values):
+    """Sampled grids as point attributes of the mesh: FLOAT for scalar grids, FLOAT_VECTOR for vec3."""
+    for name, array in values.items():
+        vector = array.ndim == 2
+        attribute = mesh.attributes.new(name=name, type="FLOAT_VECTOR" if vector else "FLOAT", domain="POINT")
+        attribute.data.foreach_set("vector" if vector else "value",
+                                   np.ascontiguousarray(array, dtype=np.float32).ravel())
 
 
 def is_frame_pattern(path):
@@ -119,16 +176,12 @@ def sequence_pattern(path):
     return os.path.join(folder, name[:d.start()] + "#" * len(d.group()) + name[d.end():])
 
 
-def run_program_sequence(program, pattern, grid, iso, ratio):
-    """Every frame of a sequence in one run of the program: [(frame, verts, faces, report)] and the
-    error lines of the frames that failed."""
+def run_program_sequence(program, pattern, grid, iso, ratio, max_error=0.0, attributes=()):
+    """Every frame of a sequence in one run of the program: [(frame, verts, faces, report, values)] and
+    the error lines of the frames that failed."""
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [program, pattern, "-q", "-o", os.path.join(tmp, "m.%d.ply"), "--report",
-               os.path.join(tmp, "r.%d.json"), "--ratio", repr(ratio)]
-        if grid:
-            cmd += ["--grid", grid]
-        if iso is not None:
-            cmd += ["--iso", repr(iso)]
+        cmd = program_command(program, pattern, os.path.join(tmp, "m.%d.ply"), os.path.join(tmp, "r.%d.json"),
+                              grid, iso, ratio, max_error, attributes)
         done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         if done.returncode not in (0, 1):
             raise RuntimeError(done.stderr.strip() or "vdb_isosimp failed with exit code %d" % done.returncode)
@@ -136,27 +189,26 @@ def run_program_sequence(program, pattern, grid, iso, ratio):
         for name in os.listdir(tmp):
             m = re.fullmatch(r"m\.(\d+)\.ply", name)
             if m:
-                verts, faces = read_binary_ply(os.path.join(tmp, name))
-                with open(os.path.join(tmp, "r.%s.json" % m.group(1))) as f:
-                    frames.append((int(m.group(1)), verts, faces, json.load(f)))
+                report = os.path.join(tmp, "r.%s.json" % m.group(1))
+                frames.append((int(m.group(1)),) + read_program_output(os.path.join(tmp, name), report, attributes))
         errors = done.stderr.strip().splitlines()
         if not frames:
             raise RuntimeError(errors[0] if errors else "no frame was imported")
         return sorted(frames, key=lambda f: f[0]), errors
 
 
-def run_module_sequence(module, pattern, grid, iso, ratio):
+def run_module_sequence(module, pattern, grid, iso, ratio, max_error=0.0, attributes=()):
     """Every frame of a sequence through the module, with the settings the program uses: a default
     iso-value comes from the first frame meshed and is given to the others."""
     frames, errors = [], []
     for number, path in module.frame_paths(pattern):
         try:
-            verts, faces, report = module.simplify(path, grid=grid, iso=iso, ratio=ratio)
+            verts, faces, report, values = run_module(module, path, grid, iso, ratio, max_error, attributes)
         except Exception as e:  # one frame's failure leaves the others
             errors.append("frame %d: %s" % (number, e))
             continue
         iso = report["iso"] if iso is None else iso
-        frames.append((number, verts, faces, report))
+        frames.append((number, verts, faces, report, values))
     if not frames:
         raise RuntimeError(errors[0] if errors else "%s: no file matches the frame pattern" % pattern)
     return frames, errors
@@ -192,6 +244,16 @@ def make_object(context, name, verts, faces):
     return obj
 
 
+def make_imported_object(context, name, verts, faces, report, values):
+    """The object of one imported mesh: its sampled attributes as point attributes, the report's figures
+    as custom properties."""
+    obj = make_object(context, name, verts, faces)
+    add_attributes(obj.data, values)
+    for key in ("iso", "ratio", "faces_full", "faces_out", "verts_out"):
+        obj["vdb_isosimp_" + key] = report[key]
+    return obj
+
+
 class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
     """Import the iso-surface of an OpenVDB grid as a simplified mesh"""
 
@@ -211,6 +273,14 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
                        default=0.0, precision=4)
     ratio: FloatProperty(name="Ratio", description="Faces kept / faces of the full-resolution surface",
                          default=0.2, min=0.0001, max=1.0, precision=4)
+    max_error: FloatProperty(name="Max error",
+                             description="If > 0: no simplification step moves the surface by more than this "
+                                         "(world units); the ratio is then not used",
+                             default=0.0, min=0.0, precision=4)
+    attributes: StringProperty(name="Attributes",
+                               description="Grids of the file sampled at every vertex, comma-separated "
+                                           "(float, double or vec3): point attributes named after the grids",
+                               default="")
     sequence: BoolProperty(name="Sequence",
                            description="Import every frame of the sequence the file belongs to "
                                        "(smoke.0001.vdb: smoke.####.vdb), one object per frame visible on its frame",
@@ -229,12 +299,15 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
         row = layout.row()
         row.enabled = not self.auto_iso
         row.prop(self, "iso")
-        layout.prop(self, "ratio")
+        row = layout.row()
+        row.enabled = self.max_error <= 0
+        row.prop(self, "ratio")
+        layout.prop(self, "max_error")
+        layout.prop(self, "attributes")
         layout.prop(self, "sequence")
         layout.prop(self, "backend")
 
     def execute(self, context):
-        iso = None if self.auto_iso else self.iso
         pattern = self.filepath if is_frame_pattern(self.filepath) else None
         if pattern is None and self.sequence:
             pattern = sequence_pattern(self.filepath)
@@ -246,32 +319,37 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
             return {"CANCELLED"}
         used, runner = chosen
         if pattern is not None:
-            return self.import_sequence(context, pattern, iso, used, runner)
+            return self.import_sequence(context, pattern, used, runner)
         wm = context.window_manager
+        wm.progress_begin(0, 100)
         try:
-            if used == "module":
-                wm.progress_begin(0, 100)
-                try:
-                    verts, faces, report = runner.simplify(
-                        self.filepath, grid=self.grid, iso=iso, ratio=self.ratio,
-                        progress=lambda fraction, kept: wm.progress_update(int(100 * fraction)))
-                finally:
-                    wm.progress_end()
-            else:
-                verts, faces, report = run_program(runner, self.filepath, self.grid, iso, self.ratio)
+            verts, faces, report, values = run_file(
+                used, runner, self.filepath, progress=lambda fraction, kept: wm.progress_update(int(100 * fraction)),
+                **self.settings())
         except Exception as e:  # the library's errors are one readable line
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        finally:
+            wm.progress_end()
 
         name = report.get("grid") or os.path.splitext(os.path.basename(self.filepath))[0]
-        obj = make_object(context, name, verts, faces)
-        for key in ("iso", "ratio", "faces_full", "faces_out", "verts_out"):
-            obj["vdb_isosimp_" + key] = report[key]
+        obj = make_imported_object(context, name, verts, faces, report, values)
         message = "%s: %d vertices, %d faces (%d at full resolution, iso %g) via the %s" % (
             name, len(obj.data.vertices), len(obj.data.polygons), report["faces_full"], report["iso"], used)
         print("vdb_isosimp import:", message)
         self.report({"INFO"}, message)
         return {"FINISHED"}
+
+    def settings(self):
+        """The run's settings, the same for a file and for every frame of a sequence (keyword arguments of
+        run_file and the sequence runners). The ratio is not used when max_error > 0."""
+        return {
+            "grid": self.grid,
+            "iso": None if self.auto_iso else self.iso,
+            "ratio": self.ratio,
+            "max_error": self.max_error,
+            "attributes": [a.strip() for a in self.attributes.split(",") if a.strip()],
+        }
 
     def choose_backend(self):
         """("module", the module) or ("program", its path); None once the reason neither is usable is reported."""
@@ -289,21 +367,19 @@ class IMPORT_MESH_OT_vdb_isosimp(bpy.types.Operator, ImportHelper):
             return None
         return "program", program
 
-    def import_sequence(self, context, pattern, iso, used, runner):
+    def import_sequence(self, context, pattern, used, runner):
         run = run_module_sequence if used == "module" else run_program_sequence
         try:
-            frames, errors = run(runner, pattern, self.grid, iso, self.ratio)
+            frames, errors = run(runner, pattern, **self.settings())
         except Exception as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         for error in errors:
             self.report({"WARNING"}, error)
-        for number, verts, faces, report in frames:
+        for number, verts, faces, report, values in frames:
             name = "%s.%04d" % (report.get("grid") or os.path.basename(pattern).split(".")[0], number)
-            obj = make_object(context, name, verts, faces)
+            obj = make_imported_object(context, name, verts, faces, report, values)
             obj["vdb_isosimp_frame"] = number
-            for key in ("iso", "ratio", "faces_full", "faces_out", "verts_out"):
-                obj["vdb_isosimp_" + key] = report[key]
             show_only_on(obj, number)
         message = "%s: %d frames (%d to %d), %d failed, iso %g, via the %s" % (
             os.path.basename(pattern), len(frames), frames[0][0], frames[-1][0], len(errors), frames[0][3]["iso"], used)

@@ -2,7 +2,7 @@
 #   blender -b --factory-startup --python-exit-code 1 --python test_blender_import.py -- \
 #       --addon io_import_vdb_isosimp.py --vdb in.vdb --iso 0.2 --ratio 0.15 \
 #       --verts N --faces M --ply out.ply --obj out.obj --glb out.glb [--stl out.stl]
-#       [--sequence seq.0001.vdb --sequence-frames K]
+#       [--sequence seq.0001.vdb --sequence-frames K] [--attribute GRID]
 # Installs and enables the add-on, checks its File > Import entry, imports the .vdb through it (Python
 # module and program fallback), then imports the program's PLY, OBJ and glTF files with Blender's own
 # importers. Every import must give N vertices and M faces, the counts vdb_isosimp reported for the same
@@ -28,6 +28,7 @@ p.add_argument("--glb")
 p.add_argument("--stl")
 p.add_argument("--sequence", help="first file of a sequence of copies of --vdb (seq.0001.vdb, ...)")
 p.add_argument("--sequence-frames", type=int, default=0, help="how many frames the sequence has")
+p.add_argument("--attribute", default="noise", help="a grid of --vdb sampled as a point attribute")
 args = p.parse_args(argv)
 
 failures = []
@@ -99,21 +100,48 @@ for backend in ("MODULE", "PROGRAM"):
         check("module and program give the same positions", np.array_equal(reference, co))
     check("object named after the grid", not obj.name.startswith("Mesh"), obj.name)
 
+# Sampled grids arrive as point attributes, the same through both back-ends (the meshed grid itself,
+# sampled at its own vertices: about the iso-value).
+attribute_values = None
+for backend in ("MODULE", "PROGRAM"):
+    clear_scene()
+    result = bpy.ops.import_mesh.vdb_isosimp(filepath=os.path.abspath(args.vdb), ratio=args.ratio, backend=backend,
+                                             attributes=args.attribute, **iso_kwargs)
+    obj = check_counts("add-on (%s) with attributes" % backend)
+    if obj is None:
+        continue
+    attribute = obj.data.attributes.get(args.attribute)
+    check("attribute '%s' via %s" % (args.attribute, backend),
+          attribute is not None and attribute.domain == "POINT" and attribute.data_type == "FLOAT")
+    if attribute is None:
+        continue
+    values = np.empty(len(obj.data.vertices), dtype=np.float32)
+    attribute.data.foreach_get("value", values)
+    if args.iso is not None:
+        check("attribute about the iso-value", abs(float(np.median(values)) - args.iso) < 0.05, str(np.median(values)))
+    if attribute_values is None:
+        attribute_values = values
+    else:
+        check("module and program give the same attribute", np.array_equal(attribute_values, values))
+
 # A frame sequence: one object per frame with the counts above, each visible on its own frame only;
-# picked as a numbered file with "Sequence" ticked (module) and as a pattern typed in (program).
+# picked as a numbered file with "Sequence" ticked (module) and as a pattern typed in (program),
+# with the sampled grid on every frame's object.
 if args.sequence:
     first = os.path.abspath(args.sequence)
     pattern = os.path.join(os.path.dirname(first), "seq.####.vdb")
     for backend, path, ticked in (("MODULE", first, True), ("PROGRAM", pattern, False)):
         clear_scene()
         result = bpy.ops.import_mesh.vdb_isosimp(filepath=path, ratio=args.ratio, backend=backend,
-                                                 sequence=ticked, **iso_kwargs)
+                                                 sequence=ticked, attributes=args.attribute, **iso_kwargs)
         what = "sequence via %s" % backend
         check(what + " finished", result == {"FINISHED"}, str(result))
         objs = imported_mesh_objects()
         check(what + ": one object per frame", len(objs) == args.sequence_frames, "got %d" % len(objs))
         counts = {(len(o.data.vertices), len(o.data.polygons)) for o in objs}
         check(what + ": every frame has the counts", counts == {(args.verts, args.faces)}, str(counts))
+        check(what + ": every frame has the attribute '%s'" % args.attribute,
+              all(args.attribute in o.data.attributes for o in objs))
         scene = bpy.context.scene
         for frame in range(0, args.sequence_frames + 2):
             scene.frame_set(frame)

@@ -32,8 +32,13 @@ struct WriteOptions {
 // unsupported extension, or for `ascii` with anything but .ply.
 MeshFormat formatForPath(const std::string& path, bool ascii = false);
 
+// Whether the format carries Mesh::attributes: PLY as vertex properties named after the attribute
+// (a vector: NAME_x NAME_y NAME_z), glTF as custom attributes `_NAME` (SCALAR or VEC3 float). OBJ and
+// STL have no room for them.
+bool formatHoldsAttributes(MeshFormat format);
+
 // Writes `mesh` to `path`. @throw OutputError naming the file (also for an index out of range or a
-// non-finite position, before anything is created).
+// non-finite position, or attributes the format cannot hold, before anything is created).
 void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& options);
 // Same, binary PLY / by extension, with `comment` as the only option.
 void writeMesh(const Mesh& mesh, const std::string& path, const std::string& comment = {});

@@ -15,6 +15,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +34,8 @@ class GridBase;
 } // namespace openvdb
 
 namespace vdb_isosimp {
+
+struct LevelOfDetail;
 
 struct Options {
     // Grid to mesh; empty: the file's first level-set grid, else the grid named "density", else its
@@ -63,6 +66,30 @@ struct Options {
     // If > 0: after the final decimation, closed components whose area is below this many world
     // units squared are removed (floaters); Report::componentsPruned counts them. Default 0 (none).
     double minComponentArea = 0.0;
+    // E > 0: an error bound in world units. No collapse (in the passes during extraction or in the
+    // final one) may move the surface by more than E, estimated as the larger of sqrt(cost / weight),
+    // the area-weighted RMS distance of the new vertex from the planes of the faces merged into it
+    // (each face weighs its area, at least 0.25 of a voxel face), and the surface's local change around
+    // the edge (faces before against after, both ways) added to the drift its ends already carry. With
+    // ratio or targetFaces as well, whichever stops first wins; ratio = 0 with E > 0 means E alone.
+    // 0 (default): no bound.
+    double maxError = 0.0;
+    // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
+    // level: extraction decimates at lods[0], the final pass decimates to each rate in turn and hands
+    // each level to onLevel as soon as it is made (so a caller can write it and let it go); the Result
+    // holds the last level and Report::levels one entry per level. ratio is ignored; targetFaces must
+    // be 0.
+    std::vector<double> lods;
+    std::function<void(const LevelOfDetail&)> onLevel;
+    // Grids sampled trilinearly at every output vertex (float, double: one value; vec3: three), each in
+    // its own index space (world -> index by its own transform), after the final pass; the values go
+    // to Mesh::attributes in this order. File input only (simplifyFile); every name is checked before
+    // any work (InputError for a missing or non-numeric grid).
+    std::vector<std::string> attributes;
+    // W > 0: the decimator also keeps the first attribute's detail (a float or double grid): each face
+    // adds an attribute quadric (Hoppe 1999) and a collapse costs its geometric error plus W^2 times
+    // the attribute's error, W in attribute units per world unit. 0 (default): geometry only.
+    double attributeWeight = 0.0;
 };
 
 // Physical memory, lowered to the cgroup (container) limit when there is one; 0 if unknown. A budget
@@ -76,6 +103,14 @@ struct DecimationRecord {
     uint64_t uncontractible = 0;   // F_u before the pass
     uint64_t target = 0;           // F_t
     uint32_t slab = 0;             // which slab's integrator ran it (the final pass: slab 0)
+};
+
+// One level of a LOD chain (Options::lods), as the report sees it.
+struct LevelReport {
+    double ratio = 0.0;
+    uint64_t facesTarget = 0, facesOut = 0, vertsOut = 0;
+    double maxErrorAccepted = 0.0;  // largest estimated displacement of a collapse up to this level
+    double seconds = 0.0;           // time since the run started when the level was ready
 };
 
 // What a run did; `--report` writes it as JSON.
@@ -110,7 +145,19 @@ struct Report {
         double seconds = 0.0;
     };
     std::vector<TreeNode> tree;
+    // Largest estimated surface displacement (Options::maxError's estimate) of any collapse made, in
+    // world units: with a bound, at most Options::maxError.
+    double maxErrorAccepted = 0.0;
+    std::vector<LevelReport> levels;  // Options::lods: one per level, finest first
     std::vector<DecimationRecord> trace;
+};
+
+// A level of a LOD chain, handed to Options::onLevel: valid only during the call.
+struct LevelOfDetail {
+    size_t index = 0;      // 0: the finest
+    const Mesh& mesh;      // with its attributes (Options::attributes)
+    const LevelReport& report;
+    const Report& run;     // the run so far: grid, iso, faces_full, ... (levels up to this one)
 };
 
 // One field of the report, named as the program's --report JSON and the Python dict name it.
@@ -153,14 +200,17 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
 
 // Receives the final mesh in pieces: begin() once with the finished report (vertsOut, facesOut give
 // the counts), then vertices() until all points are delivered, then triangles() (indices into the
-// points, counter-clockwise seen from outside), then end(). Each piece's storage is valid only during
-// the call. Lets a caller convert or upload the mesh without holding a second full copy of it.
+// points, counter-clockwise seen from outside), then attribute() once per sampled grid, then end().
+// Each piece's storage is valid only during the call. Lets a caller convert or upload the mesh without
+// holding a second full copy of it.
 class MeshSink {
 public:
     virtual ~MeshSink() = default;
     virtual void begin(const Report& /*report*/) {}
     virtual void vertices(const std::array<float, 3>* points, size_t count) = 0;
     virtual void triangles(const std::array<uint32_t, 3>* triangles, size_t count) = 0;
+    // Each sampled attribute (Options::attributes) whole, after the triangles; ignored by default.
+    virtual void attribute(const VertexAttribute& /*values*/) {}
     virtual void end() {}
 };
 

@@ -34,6 +34,32 @@ constexpr double kDegenerateShape = 1e-10;
 // moved across a face keeps 1e-8 of the cost of moving it off the face's plane by the same distance.
 constexpr double kAnchorWeight = 1e-8;
 
+// Squared distance from p to triangle (a, b, c): Ericson, "Real-Time Collision Detection", 5.1.5.
+double pointTriangleDistance2(const V3& p, const V3& a, const V3& b, const V3& c)
+{
+    const V3 ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
+    const auto dist2 = [&](const V3& q) { const V3 d = sub(p, q); return dot(d, d); };
+    const auto along = [](const V3& o, const V3& e, double t) { return V3{o[0] + t * e[0], o[1] + t * e[1], o[2] + t * e[2]}; };
+    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) return dist2(a);
+    const V3 bp = sub(p, b);
+    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) return dist2(b);
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return dist2(along(a, ab, d1 / (d1 - d3)));
+    const V3 cp = sub(p, c);
+    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) return dist2(c);
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return dist2(along(a, ac, d2 / (d2 - d6)));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return dist2(along(b, sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    const double denom = va + vb + vc;
+    if (!(std::abs(denom) > 0)) return std::min({dist2(a), dist2(b), dist2(c)});  // no area: its corners
+    const double v = vb / denom, w = vc / denom;
+    return dist2({a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w, a[2] + ab[2] * v + ac[2] * w});
+}
+
 } // namespace
 
 uint32_t Decimator::newVertex(const std::array<double, 3>& p)
@@ -48,6 +74,14 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         mMeta.emplace_back();
     }
     mGeom[id] = {p, Quadric{}};
+    if (mMaxError < HUGE_VAL) {
+        if (id >= mDrift.size()) mDrift.emplace_back();
+        mDrift[id] = 0.0f;
+    }
+    if (mAttrWeight2 > 0) {
+        if (id >= mAttrQ.size()) mAttrQ.emplace_back();
+        mAttrQ[id] = AttributeQuadric{};
+    }
     VertexMeta& v = mMeta[id];
     ++v.version;  // a reused slot must not match stale queue entries (or refused ones)
     ++v.ring;
@@ -149,10 +183,10 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
     size_t n = 0;
     V3 y;
     if (q.optimum(y)) {
-        out[n++] = {y, 0};
-        // The optimum is the cheapest point there is.
-        if (cheapestOnly) {
-            out[0].cost = std::max(0.0, q.error(y));
+        out[n++] = {y, 0, 0};
+        // The optimum is the cheapest point there is (of the geometry: an attribute may prefer another).
+        if (cheapestOnly && !(mAttrWeight2 > 0)) {
+            out[0].cost = out[0].geoCost = std::max(0.0, q.error(y));
             return 1;
         }
     }
@@ -161,13 +195,19 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
     const double bd = q.q[3] * d[0] + q.q[6] * d[1] + q.q[8] * d[2];
     if (dAd > 0) {
         const double t = -bd / dAd;
-        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0};
+        if (t > 0 && t < 1) out[n++] = {{t * d[0], t * d[1], t * d[2]}, 0, 0};
     }
-    out[n++] = {{0, 0, 0}, 0};
-    out[n++] = {d, 0};
-    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0};
+    out[n++] = {{0, 0, 0}, 0, 0};
+    out[n++] = {d, 0, 0};
+    out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0, 0};
+    AttributeQuadric attr;
+    if (mAttrWeight2 > 0) {
+        attr = mAttrQ[a];
+        attr += mAttrQ[b].shifted(sub(va.p, vb.p));
+    }
     for (size_t i = 0; i < n; ++i) {
-        out[i].cost = std::max(0.0, q.error(out[i].p));
+        out[i].geoCost = std::max(0.0, q.error(out[i].p));
+        out[i].cost = out[i].geoCost + (mAttrWeight2 > 0 ? mAttrWeight2 * attr.error(out[i].p) : 0.0);
         out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
     }
     // Cheapest first; ties keep the order above.
@@ -304,6 +344,16 @@ void Decimator::addBlock(const BlockMesh& block)
                 mGeom[x].q.addPlane(u, d + dot(u, mGeom[x].p), weight);
                 mGeom[x].q.addPoint(kAnchorWeight * weight);
             }
+            if (mAttrWeight2 > 0 && !block.attribute.empty()) {
+                // The attribute, linear over the face: its gradient in the face's plane from the corner
+                // values (each corner's value times the edge opposite it, turned a quarter in the plane).
+                const double a0 = block.attribute[t[0]], a1 = block.attribute[t[1]], a2 = block.attribute[t[2]];
+                const V3 e0 = cross(u, sub(p2, p1)), e1 = cross(u, sub(p0, p2)), e2 = cross(u, sub(p1, p0));
+                V3 grad;
+                for (int k = 0; k < 3; ++k) grad[size_t(k)] = (a0 * e0[size_t(k)] + a1 * e1[size_t(k)] + a2 * e2[size_t(k)]) / len;
+                const double values[3] = {a0, a1, a2};
+                for (int k = 0; k < 3; ++k) mAttrQ[v[size_t(k)]].addFace(grad, values[k], weight);
+            }
         }
     }
     for (size_t i = 0; i < block.keys.size(); ++i)
@@ -338,7 +388,11 @@ MeshPiece Decimator::takePiece()
     constexpr size_t kVertChunk = decltype(mMeta)::kChunk, kFaceChunk = decltype(mFaces)::kChunk;
     static_assert(kVertChunk == decltype(mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
-        if (mMeta[v].alive) piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final};
+        if (mMeta[v].alive) {
+            piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final};
+            if (v < mDrift.size()) piece.drift.emplace_back() = mDrift[v];
+            if (v < mAttrQ.size()) piece.attributes.emplace_back() = mAttrQ[v];
+        }
         if ((v + 1) % kVertChunk == 0) {
             mGeom.releaseChunk(v / kVertChunk);
             mMeta.releaseChunk(v / kVertChunk);
@@ -364,9 +418,11 @@ void Decimator::absorb(MeshPiece&& piece)
             remap[id] = it->second;
             VertexGeom& mine = mGeom[it->second];
             mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
+            copyExtras(it->second, piece, id);
         } else {
             remap[id] = newVertex(theirs.p);
             mGeom[remap[id]].q = theirs.q;
+            copyExtras(remap[id], piece, id);
             mOpen.emplace(key, remap[id]);
         }
     }
@@ -377,6 +433,7 @@ void Decimator::absorb(MeshPiece&& piece)
             const MeshPiece::Vertex& theirs = piece.vertices[v];
             remap[v] = newVertex(theirs.p);
             mGeom[remap[v]].q = theirs.q;
+            copyExtras(remap[v], piece, v);
             mMeta[remap[v]].final = theirs.final;
         }
         if ((v + 1) % kVertChunk == 0) piece.vertices.releaseChunk(v / kVertChunk);
@@ -548,6 +605,11 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
     VertexGeom& gk = mGeom[keep];
     const VertexGeom& gg = mGeom[gone];
     gk.q = edgeQuadric(gk.p, gk.q, gg.p, gg.q).shifted(sub(target, gk.p));
+    if (mAttrWeight2 > 0) {
+        AttributeQuadric& ak = mAttrQ[keep];
+        ak += mAttrQ[gone].shifted(sub(gk.p, gg.p));
+        ak = ak.shifted(sub(target, gk.p));
+    }
     gk.p = target;
     ++vk.version;
     ++vk.ring;
@@ -559,6 +621,81 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
     const uint32_t brought = gone == a ? e.inA : e.inB;
     for (uint32_t n : ring)
         if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
+}
+
+double Decimator::displacement(uint32_t a, uint32_t b, double cost) const
+{
+    // The trace of the 3x3 part is the sum of the plane weights (unit normals), and shifting a quadric
+    // leaves it unchanged, so the edge quadric's weight is the sum of its ends'.
+    const Quadric &qa = mGeom[a].q, &qb = mGeom[b].q;
+    const double weight = qa.q[0] + qa.q[4] + qa.q[7] + qb.q[0] + qb.q[4] + qb.q[7];
+    return weight > 0 ? std::sqrt(std::max(0.0, cost) / weight) : 0.0;
+}
+
+double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit) const
+{
+    // The faces around a and b before the collapse and after it (p in place of either end; the two
+    // faces on ab vanish). Both ways, each side's moving corners, centroids and the midpoints of its
+    // edges at a moving corner against the other side: a collapse that flattens a bump or a dent keeps
+    // its corners on the surface but moves the middle of its faces. (The other corners and the edges
+    // between them are on both sides.)
+    std::vector<FanFace>& before = mFanBefore;
+    std::vector<FanFace>& after = mFanAfter;
+    before.clear();
+    after.clear();
+    for (const uint32_t end : {a, b})
+        for (uint32_t c = mMeta[end].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
+            const auto& fv = mFaces[c / 3].v;
+            const bool hasA = fv[0] == a || fv[1] == a || fv[2] == a, hasB = fv[0] == b || fv[1] == b || fv[2] == b;
+            if (end == b && hasA) continue;  // seen from a already
+            FanFace old{{mGeom[fv[0]].p, mGeom[fv[1]].p, mGeom[fv[2]].p}, 0};
+            for (int k = 0; k < 3; ++k) old.moving |= uint8_t((fv[k] == a || fv[k] == b) << k);
+            before.push_back(old);
+            if (hasA && hasB) continue;
+            FanFace now = old;
+            for (int k = 0; k < 3; ++k)
+                if (old.moving >> k & 1) now.t[k] = p;
+            after.push_back(now);
+        }
+    // Squared; stops early once the distance passes `limit` (the collapse is refused then anyway),
+    // and a sample stops looking once a face is nearer than the worst so far, trying first the face
+    // that corresponds to its own (the lists run in the same order).
+    const double limit2 = limit * limit;
+    const auto farthest = [limit2](const std::vector<FanFace>& from, const std::vector<FanFace>& to, double worst) {
+        const auto mid = [](const V3& x, const V3& y) { return V3{(x[0] + y[0]) / 2, (x[1] + y[1]) / 2, (x[2] + y[2]) / 2}; };
+        for (size_t i = 0; i < from.size(); ++i) {
+            const Tri& t = from[i].t;
+            V3 samples[6];
+            int n = 0;
+            samples[n++] = {(t[0][0] + t[1][0] + t[2][0]) / 3, (t[0][1] + t[1][1] + t[2][1]) / 3, (t[0][2] + t[1][2] + t[2][2]) / 3};
+            for (int k = 0; k < 3; ++k) {
+                const bool moving = from[i].moving >> k & 1, nextMoving = from[i].moving >> ((k + 1) % 3) & 1;
+                if (moving) samples[n++] = t[k];
+                if (moving || nextMoving) samples[n++] = mid(t[k], t[(k + 1) % 3]);
+            }
+            const size_t start = std::min(i, to.size() - 1);
+            for (int s = 0; s < n; ++s) {
+                double nearest = HUGE_VAL;
+                for (size_t j = 0; j < to.size(); ++j) {
+                    const Tri& u = to[(start + j) % to.size()].t;
+                    nearest = std::min(nearest, pointTriangleDistance2(samples[s], u[0], u[1], u[2]));
+                    if (nearest <= worst) break;
+                }
+                worst = std::max(worst, nearest);
+                if (worst > limit2) return worst;
+            }
+        }
+        return worst;
+    };
+    if (after.empty()) return HUGE_VAL;  // nothing would be left of the fan
+    return std::sqrt(farthest(after, before, farthest(before, after, 0.0)));
+}
+
+void Decimator::copyExtras(uint32_t mine, const MeshPiece& piece, uint32_t theirs)
+{
+    if (mMaxError < HUGE_VAL && theirs < piece.drift.size()) mDrift[mine] = std::max(mDrift[mine], piece.drift[theirs]);
+    if (mAttrWeight2 > 0 && theirs < piece.attributes.size())
+        mAttrQ[mine] += piece.attributes[theirs].shifted(sub(mGeom[mine].p, piece.vertices[theirs].p));
 }
 
 Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
@@ -575,6 +712,20 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     if (place == count) return Outcome::Refused;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
+    double moved = displacement(a, b, places[place].geoCost);
+    // Under a bound, the quadric's plane distances are checked against the surface itself too: how
+    // far the collapse moves the surface locally (fanDistance: a thin spike folded into its base costs
+    // little on its nearly parallel side planes, yet moves its tip by its whole length), added to how
+    // far the surface at either end had already drifted from the full-resolution one.
+    double drift = 0.0;
+    if (mMaxError < HUGE_VAL && moved <= mMaxError) {
+        const double before = std::max(mDrift[a], mDrift[b]);
+        drift = before + fanDistance(a, b, places[place].p, mMaxError - before);
+        moved = std::max(moved, drift);
+    }
+    if (moved > mMaxError) return Outcome::TooFar;
+    mMaxErrorAccepted = std::max(mMaxErrorAccepted, moved);
+    if (mMaxError < HUGE_VAL) mDrift[a] = mDrift[b] = float(drift);  // the survivor keeps it
 
     mergeEnds(a, b, e, places[place].p);
     return Outcome::Collapsed;
@@ -607,10 +758,17 @@ size_t Decimator::decimateTo(size_t targetFaces)
             continue;
         }
         ++mAttempts;
+        // The queued cost bounds every placement's from below (of the geometry; an attribute's part
+        // would not): past the error bound already, the pair waits without the topology checks.
+        if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
+            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring});
+            continue;
+        }
         double cost;
         switch (collapse(a, b, c.cost(), &cost)) {
         case Outcome::Collapsed: ++collapses; break;
-        case Outcome::Refused: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
+        case Outcome::Refused:
+        case Outcome::TooFar: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }
     }
@@ -683,6 +841,7 @@ bool Decimator::openPinch(uint32_t f)
                 continue;
             }
             mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
+            if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
             ++mMeta[x].version;
             ++mMeta[x].ring;
             return true;
@@ -696,8 +855,9 @@ size_t Decimator::removeDegenerateFaces()
     // A zero-area face has no normal worth keeping, but its neighbours do: any turn short of a fold
     // is allowed. (Letting faces fold here turned a needle-thin sphere, 1e-6 voxels on two axes and
     // all slivers, inside out.)
-    const double savedCos = mMinNormalCos;
+    const double savedCos = mMinNormalCos, savedError = mMaxError;
     mMinNormalCos = 0.0;
+    mMaxError = HUGE_VAL;  // removing a face of no area moves the surface by about nothing
     // Zero area also means tiny next to the whole surface: 1e-12 of the squared bounding-box diagonal
     // (vertices a hair apart around one voxel corner make such faces with a fair shape).
     V3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
@@ -738,6 +898,7 @@ size_t Decimator::removeDegenerateFaces()
         }
     }
     mMinNormalCos = savedCos;
+    mMaxError = savedError;
     mZeroArea = 0.0;
     return remaining;
 }

@@ -10,6 +10,7 @@
 // placement avoids flipping or degenerating a face.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -18,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/attribute_quadric.h"
 #include "core/chunked_vector.h"
 #include "core/marching_cubes.h"
 #include "core/quad_heap.h"
@@ -45,6 +47,10 @@ struct MeshPiece {
     std::vector<std::pair<EdgeKey, uint32_t>> open;  // sorted by key
     std::vector<Queued> queue;                        // in the queue's array order
     std::vector<std::array<uint32_t, 2>> refused;
+    // Per vertex, only where the decimator keeps them: the drift under an error bound, and the
+    // attribute quadric (written around the vertex) with an attribute weight.
+    ChunkedVector<float> drift;
+    ChunkedVector<AttributeQuadric> attributes;
 };
 
 class Decimator {
@@ -109,6 +115,23 @@ public:
         mMinPlaneWeight = kMinPlaneWeight * area;
         mMinVertexWeight = kMinVertexWeight * area;
     }
+
+    // Error bound, in the units of the positions: a collapse whose estimated surface displacement
+    // exceeds it is refused (and retried only once the faces around an end change). The estimate is
+    // the area-weighted RMS distance of the placement from the planes merged into the edge's two
+    // quadrics, sqrt(cost / weight), where weight, the trace of the quadric's 3x3 part, is the sum of
+    // the plane weights (each face's area, at least 0.25 voxel faces, and each vertex at least 2); under a bound, also the distance
+    // of both ends from the faces the collapse leaves (fanDistance). Infinity (default): no bound.
+    void setMaxError(double error) { mMaxError = error; }
+    // Weight W of an attribute's error against the geometric error (attribute units per world unit):
+    // with W > 0 each face also adds an attribute quadric (attribute_quadric.h) from the values of
+    // BlockMesh::attribute at its corners, and a collapse costs its geometric error plus W^2 times its
+    // attribute error, so collapses across a front of the attribute wait. Set before any block.
+    void setAttributeWeight(double weight) { mAttrWeight2 = weight * weight; }
+
+    // Largest estimated displacement of a collapse made so far (same estimate; without a bound, the
+    // quadric part only).
+    double maxErrorAccepted() const { return mMaxErrorAccepted; }
 
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
@@ -195,6 +218,7 @@ private:
     struct Placement {
         std::array<double, 3> p;
         double cost;
+        double geoCost;  // of which: the geometric quadric's part (the error bound's estimate reads it)
     };
     static constexpr size_t kPlacements = 5;
     // The candidates of edge ab, cheapest first; returns how many (at most kPlacements). With
@@ -210,9 +234,19 @@ private:
     // valid placement costs least; for zero-area faces.
     bool collapseCheapestEdge(uint32_t f, bool aroundFace);
     bool openPinch(uint32_t f);
-    enum class Outcome { Collapsed, Refused, Costlier };
+    enum class Outcome { Collapsed, Refused, Costlier, TooFar };
+    // sqrt(cost / weight) of edge ab at a placement of that cost (setMaxError).
+    double displacement(uint32_t a, uint32_t b, double cost) const;
+    // How far the surface around ab moves when ab collapses to p: the largest distance of the corners,
+    // centroids and edge midpoints of the faces around a and b before from the faces after, and the
+    // other way. Any result above `limit` may stop the search early.
+    double fanDistance(uint32_t a, uint32_t b, const std::array<double, 3>& p, double limit) const;
+    // Slab merge: vertex `mine` takes over what the piece's vertex `theirs` carries beyond position and
+    // quadric (a welded seam vertex sums them): the larger drift under a bound, the attribute quadric.
+    void copyExtras(uint32_t mine, const MeshPiece& piece, uint32_t theirs);
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
-    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier).
+    // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier), or when it
+    // moves the surface by more than the error bound (TooFar).
     Outcome collapse(uint32_t a, uint32_t b, float maxCost, double* cost);
     // What edgeMayCollapse learns of edge ab for mergeEnds.
     struct EdgeLink {
@@ -257,11 +291,23 @@ private:
     static constexpr double kMinVertexWeight = 2.0;  // of a voxel face's area, per vertex
     double mMinPlaneWeight = kMinPlaneWeight;
     double mMinVertexWeight = kMinVertexWeight;
+    double mMaxError = HUGE_VAL, mMaxErrorAccepted = 0.0;
+    // Under a bound, per vertex: how far the surface around it may have moved from the full-resolution
+    // one, the sum of the local displacements of the collapses that made it (empty without a bound).
+    ChunkedVector<float> mDrift;
+    double mAttrWeight2 = 0.0;
+    ChunkedVector<AttributeQuadric> mAttrQ;  // per vertex, written around it; empty without a weight
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::function<bool()> mStop;
     uint64_t mPolls = 0;
     uint32_t mStamp = 0;
     std::vector<uint32_t> mScratchA, mScratchB;
+    using Tri = std::array<std::array<double, 3>, 3>;
+    struct FanFace {
+        Tri t;
+        uint8_t moving;  // bit k: corner k is an end of the edge (before) or the new vertex (after)
+    };
+    mutable std::vector<FanFace> mFanBefore, mFanAfter;  // fanDistance's faces, kept to spare allocations
 };
 
 } // namespace vdb_isosimp

@@ -42,6 +42,9 @@ struct BlockMesh {
     std::vector<std::array<double, 3>> positions;
     std::vector<uint8_t> finalAfterBlock;
     std::vector<std::array<uint32_t, 3>> triangles;
+    // An attribute's value at each position, when the decimator weighs one (Options::attributeWeight);
+    // empty otherwise.
+    std::vector<double> attribute;
 };
 
 // The 9^3 corner samples of a block (its 8^3 cells plus the +x/+y/+z layer), x fastest.

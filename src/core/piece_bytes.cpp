@@ -63,6 +63,7 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     w.put(piece.stats.decimations);
     w.put(piece.stats.maxIntermediateFaces);
     w.put(piece.stats.maxUncontractibleFaces);
+    w.put(piece.stats.maxErrorAccepted);
     w.put(uint64_t(piece.stats.trace.size()));
     for (const DecimationRecord& r : piece.stats.trace) {
         w.put(r.facesGenerated);
@@ -102,6 +103,16 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         w.put(r[0]);
         w.put(r[1]);
     }
+    w.put(uint64_t(m.drift.size()));
+    for (size_t i = 0; i < m.drift.size(); ++i) w.put(m.drift[i]);
+    w.put(uint64_t(m.attributes.size()));
+    for (size_t i = 0; i < m.attributes.size(); ++i) {
+        const AttributeQuadric& a = m.attributes[i];
+        for (double x : a.gg) w.put(x);
+        for (double x : a.g) w.put(x);
+        for (double x : a.gd) w.put(x);
+        for (double x : {a.w, a.d, a.dd}) w.put(x);
+    }
     piece = SlabPiece{};
 }
 
@@ -114,6 +125,7 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
     piece.stats.decimations = r.get<uint64_t>();
     piece.stats.maxIntermediateFaces = r.get<uint64_t>();
     piece.stats.maxUncontractibleFaces = r.get<uint64_t>();
+    piece.stats.maxErrorAccepted = r.get<double>();
     piece.stats.trace.resize(r.count(5 * 8 + 4));
     for (DecimationRecord& d : piece.stats.trace) {
         d.facesGenerated = r.get<uint64_t>();
@@ -158,6 +170,20 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
         x[0] = r.get<uint32_t>();
         x[1] = r.get<uint32_t>();
         if (x[0] >= vertices || x[1] >= vertices) throw std::runtime_error("merge tree piece: a refused edge is missing");
+    }
+    const uint64_t drift = r.count(4);
+    if (drift != 0 && drift != vertices) throw std::runtime_error("merge tree piece: drift for some vertices only");
+    for (uint64_t i = 0; i < drift; ++i) m.drift.emplace_back() = r.get<float>();
+    const uint64_t attributes = r.count(15 * 8);
+    if (attributes != 0 && attributes != vertices) throw std::runtime_error("merge tree piece: attributes for some vertices only");
+    for (uint64_t i = 0; i < attributes; ++i) {
+        AttributeQuadric& a = m.attributes.emplace_back();
+        for (double& x : a.gg) x = r.get<double>();
+        for (double& x : a.g) x = r.get<double>();
+        for (double& x : a.gd) x = r.get<double>();
+        a.w = r.get<double>();
+        a.d = r.get<double>();
+        a.dd = r.get<double>();
     }
     return piece;
 }

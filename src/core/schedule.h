@@ -16,6 +16,7 @@ namespace vdb_isosimp {
 // What one slab's integrator measured; merged into the Report in slab order.
 struct SlabStats {
     uint64_t decimations = 0, maxIntermediateFaces = 0, maxUncontractibleFaces = 0;
+    double maxErrorAccepted = 0.0;  // of the slabs' passes (a decimator is emptied when its node joins)
     std::vector<DecimationRecord> trace;
 
     // Adds a merged slab's numbers: the peaks add up (the slabs may run at once).
@@ -24,6 +25,7 @@ struct SlabStats {
         decimations += o.decimations;
         maxIntermediateFaces += o.maxIntermediateFaces;
         maxUncontractibleFaces += o.maxUncontractibleFaces;
+        maxErrorAccepted = std::max(maxErrorAccepted, o.maxErrorAccepted);
         trace.insert(trace.end(), o.trace.begin(), o.trace.end());
     }
 };
@@ -47,7 +49,12 @@ public:
     Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
         : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab)
     {
-        mInitial = ratio < o.initialRatio;
+        // With an error bound the bound keeps early batches from losing detail; the initial phase,
+        // which decimates whenever the mesh exceeds B, would run at every block once the bound holds
+        // the mesh above B.
+        mInitial = ratio < o.initialRatio && !(o.maxError > 0);
+        if (o.maxError > 0) mDec.setMaxError(o.maxError);
+        if (o.attributeWeight > 0) mDec.setAttributeWeight(o.attributeWeight);
     }
 
     void add(const BlockMesh& b)
@@ -82,22 +89,37 @@ public:
         mAbsorbedFaces = 0;
         unfinalized = mDec.finalizeRemaining();
         // The merged queue holds every slab's edges plus the welded seam's.
+        reach(targetFaces);
+    }
+
+    // Decimates the finished surface to `targetFaces`; called again with smaller targets, it makes
+    // the next levels of a LOD chain from the previous one.
+    void reach(uint64_t targetFaces)
+    {
         decimate(targetFaces);
         // Collapses refused earlier (link condition, fold-overs) may be legal now: retry until stuck.
-        // Then, only if still above target, allow larger normal turns step by step.
+        // Then, only if still above target, allow larger normal turns step by step, unless an error
+        // bound is what stops the collapses: folds do not bring the surface closer.
+        const bool bounded = mOpt.maxError > 0;
         for (double turn : {Decimator::kDefaultMinNormalCos, 0.0, -0.3, -0.6}) {
+            if (bounded && turn != Decimator::kDefaultMinNormalCos) break;
             mDec.setMaxNormalTurn(turn);
             while (mDec.faceCount() > targetFaces) {
                 mDec.requeueAll();
-                if (mDec.decimateTo(targetFaces) == 0) break;
+                // Under a bound one retry is enough: edges refused for their error come back through
+                // the refused list once the faces around them change, and a full requeue would measure
+                // every edge of the mesh again.
+                if (mDec.decimateTo(targetFaces) == 0 || bounded) break;
             }
         }
         mDec.setMaxNormalTurn(Decimator::kDefaultMinNormalCos);
         // Below R = 1, no zero-area face may survive (R = 1 is the exact Marching Cubes surface).
-        if (targetFaces < facesGenerated) mDec.removeDegenerateFaces();
+        if (targetFaces < mFacesGenerated) mDec.removeDegenerateFaces();
         // Still above target (more than 1%): the surface is mostly small closed components that no
-        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds.
-        if (double(mDec.faceCount()) > 1.01 * double(targetFaces)) mComponentsDropped = mDec.dropSmallComponents(targetFaces);
+        // collapse can shrink further; the smallest ones go, so the face count the user asked for holds
+        // (not under an error bound: a dropped component moves the surface by its own size).
+        if (!bounded && double(mDec.faceCount()) > 1.01 * double(targetFaces))
+            mComponentsDropped += mDec.dropSmallComponents(targetFaces);
         // Floaters the caller asked to lose go last, so they take no part in the decimation's choices.
         if (mOpt.minComponentArea > 0) mComponentsPruned = mDec.pruneComponents(mOpt.minComponentArea);
     }
@@ -108,11 +130,13 @@ public:
     {
         if (mSinceLast > 0 && !mInitial) decimate(batchTarget(double(mFacesGenerated)));
         mSinceLast = 0;
+        mStats.maxErrorAccepted = mDec.maxErrorAccepted();
     }
 
     // This node's mesh and numbers, for its parent in the merge tree; the integrator is left empty.
     SlabPiece takePiece()
     {
+        mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
         SlabPiece p{mDec.takePiece(), mFacesGenerated + mAbsorbedFaces, std::move(mStats)};
         p.stats.add(mAbsorbed);
         return p;

@@ -120,6 +120,27 @@ void checkFinite(const Mesh& mesh)
                 throw OutputError("vertex " + std::to_string(i) + " has a non-finite coordinate");
 }
 
+// Each attribute has 1 or 3 values per point and a name a PLY header can hold.
+void checkAttributes(const Mesh& mesh)
+{
+    for (const VertexAttribute& a : mesh.attributes) {
+        if (a.components != 1 && a.components != 3)
+            throw OutputError("attribute '" + a.name + "' has " + std::to_string(a.components) + " components (1 or 3)");
+        if (a.values.size() != size_t(a.components) * mesh.points.size())
+            throw OutputError("attribute '" + a.name + "' has " + std::to_string(a.values.size()) + " values for " +
+                              std::to_string(mesh.points.size()) + " vertices");
+        if (a.name.empty() || a.name.find_first_of(" \t\r\n") != std::string::npos)
+            throw OutputError("attribute name '" + a.name + "' is empty or holds white space");
+    }
+}
+
+// The PLY property names of an attribute: the grid's name, or NAME_x NAME_y NAME_z for a vector.
+std::vector<std::string> plyPropertyNames(const VertexAttribute& a)
+{
+    if (a.components == 1) return {a.name};
+    return {a.name + "_x", a.name + "_y", a.name + "_z"};
+}
+
 void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
 {
     std::vector<std::array<float, 3>> normals;
@@ -132,6 +153,8 @@ void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
     h += "element vertex " + std::to_string(mesh.points.size()) +
          "\nproperty float x\nproperty float y\nproperty float z\n";
     if (o.normals) h += "property float nx\nproperty float ny\nproperty float nz\n";
+    for (const VertexAttribute& a : mesh.attributes)
+        for (const std::string& name : plyPropertyNames(a)) h += "property float " + name + "\n";
     h += "element face " + std::to_string(mesh.triangles.size()) +
          "\nproperty list uchar int vertex_indices\nend_header\n";
     out.text(h);
@@ -150,6 +173,11 @@ void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
                     line += ' ';
                     appendFloat(line, normals[i][size_t(k)]);
                 }
+            for (const VertexAttribute& a : mesh.attributes)
+                for (uint32_t k = 0; k < a.components; ++k) {
+                    line += ' ';
+                    appendFloat(line, a.values[i * a.components + k]);
+                }
             line += '\n';
             out.text(line);
         }
@@ -159,10 +187,11 @@ void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
     }
 
     if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
-    if (o.normals) {
+    if (o.normals || !mesh.attributes.empty()) {
         for (size_t i = 0; i < mesh.points.size(); ++i) {
             out.pod(mesh.points[i]);
-            out.pod(normals[i]);
+            if (o.normals) out.pod(normals[i]);
+            for (const VertexAttribute& a : mesh.attributes) out.bytes(&a.values[i * a.components], sizeof(float) * a.components);
         }
     } else {
         out.bytes(mesh.points.data(), sizeof(float) * 3 * mesh.points.size());
@@ -242,8 +271,10 @@ void writeGlb(const Mesh& mesh, Out& out, const WriteOptions& o)
 {
     if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
     const uint64_t nv = mesh.points.size(), nt = mesh.triangles.size();
+    uint64_t attrBytes = 0;
+    for (const VertexAttribute& a : mesh.attributes) attrBytes += 4 * uint64_t(a.components) * nv;
     const uint64_t posBytes = 12 * nv, nrmBytes = o.normals ? 12 * nv : 0, idxBytes = 12 * nt;
-    if (posBytes + nrmBytes + idxBytes + (1u << 20) > std::numeric_limits<uint32_t>::max())
+    if (posBytes + nrmBytes + attrBytes + idxBytes + (1u << 20) > std::numeric_limits<uint32_t>::max())
         throw OutputError("mesh too large for a .glb file (4 GiB at most); write .ply instead");
     const std::string name = o.objectName.empty() ? std::string("vdb_isosimp") : o.objectName;
 
@@ -264,13 +295,19 @@ void writeGlb(const Mesh& mesh, Out& out, const WriteOptions& o)
     if (nv > 0 && nt > 0) {  // glTF accessors must not be empty
         node.mesh = 0;
         tinygltf::Buffer buffer;
-        buffer.data.resize(posBytes + nrmBytes + idxBytes);
+        buffer.data.resize(posBytes + nrmBytes + attrBytes + idxBytes);
         std::memcpy(buffer.data.data(), mesh.points.data(), posBytes);
         if (o.normals) {
             const auto normals = vertexNormals(mesh);
             std::memcpy(buffer.data.data() + posBytes, normals.data(), nrmBytes);
         }
-        std::memcpy(buffer.data.data() + posBytes + nrmBytes, mesh.triangles.data(), idxBytes);
+        // Attributes follow the normals, one tightly packed view each.
+        size_t attrOffset = posBytes + nrmBytes;
+        for (const VertexAttribute& a : mesh.attributes) {
+            std::memcpy(buffer.data.data() + attrOffset, a.values.data(), 4 * a.values.size());
+            attrOffset += 4 * a.values.size();
+        }
+        std::memcpy(buffer.data.data() + posBytes + nrmBytes + attrBytes, mesh.triangles.data(), idxBytes);
         model.buffers.push_back(std::move(buffer));
 
         auto addView = [&](size_t offset, size_t length, int target) {
@@ -307,7 +344,16 @@ void writeGlb(const Mesh& mesh, Out& out, const WriteOptions& o)
         if (o.normals)
             prim.attributes["NORMAL"] = addAccessor(addView(posBytes, nrmBytes, TINYGLTF_TARGET_ARRAY_BUFFER),
                                                     TINYGLTF_COMPONENT_TYPE_FLOAT, nv, TINYGLTF_TYPE_VEC3);
-        prim.indices = addAccessor(addView(posBytes + nrmBytes, idxBytes, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+        // Application-specific attributes: glTF requires the leading underscore.
+        attrOffset = posBytes + nrmBytes;
+        for (const VertexAttribute& a : mesh.attributes) {
+            const size_t bytes = 4 * a.values.size();
+            prim.attributes["_" + a.name] = addAccessor(addView(attrOffset, bytes, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                        TINYGLTF_COMPONENT_TYPE_FLOAT, nv,
+                                                        a.components == 3 ? TINYGLTF_TYPE_VEC3 : TINYGLTF_TYPE_SCALAR);
+            attrOffset += bytes;
+        }
+        prim.indices = addAccessor(addView(posBytes + nrmBytes + attrBytes, idxBytes, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
                                    TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, 3 * nt, TINYGLTF_TYPE_SCALAR);
         tinygltf::Mesh m;
         m.name = name;
@@ -338,6 +384,11 @@ MeshFormat formatForPath(const std::string& path, bool ascii)
     throw OutputError(path + ": unsupported output format '." + ext + "' (supported: .ply, .obj, .stl, .glb)");
 }
 
+bool formatHoldsAttributes(MeshFormat format)
+{
+    return format == MeshFormat::PlyBinary || format == MeshFormat::PlyAscii || format == MeshFormat::Glb;
+}
+
 std::vector<std::array<float, 3>> vertexNormals(const Mesh& mesh)
 {
     checkIndices(mesh);
@@ -363,6 +414,9 @@ void writeMesh(const Mesh& mesh, const std::string& path, const WriteOptions& op
     try {
         checkIndices(mesh);
         checkFinite(mesh);
+        checkAttributes(mesh);
+        if (!mesh.attributes.empty() && !formatHoldsAttributes(format))
+            throw OutputError("OBJ and STL have no vertex attributes; write .ply or .glb");
     } catch (const OutputError& e) {
         throw OutputError(path + ": " + e.what());
     }

@@ -10,10 +10,12 @@
 #include "core/marching_cubes.h"
 #include "core/piece_bytes.h"
 #include "core/schedule.h"
+#include "pipeline/levels.h"
 #include "pipeline/memory_budget.h"
 #include "pipeline/pipeline_internal.h"
 #include "pipeline/run_stats.h"
 #include "pipeline/slabs.h"
+#include "vdb/attribute_sampler.h"
 #include "vdb/block_order.h"
 #include "vdb/volume_reader.h"
 #include "vdb_isosimp/errors.h"
@@ -44,12 +46,21 @@ namespace {
 
 void checkOptions(const Options& o)
 {
-    if (!(o.ratio > 0.0 && o.ratio <= 1.0)) {
+    if (!(o.maxError >= 0.0 && o.maxError < HUGE_VAL)) {
+        std::ostringstream s;
+        s << "maximum error must be a finite number >= 0, got " << o.maxError;
+        throw InputError(s.str());
+    }
+    checkLods(o);
+    // Ratio 0 is no face target: the error bound alone decides.
+    const bool errorAlone = o.ratio == 0.0 && o.maxError > 0.0;
+    if (!errorAlone && !(o.ratio > 0.0 && o.ratio <= 1.0)) {
         std::ostringstream s;
         s << "ratio must be in (0, 1], got " << o.ratio;
         throw InputError(s.str());
     }
     if (o.batchFaces < 1000) throw InputError("batch must be at least 1000 faces");
+    if (!(o.attributeWeight >= 0.0 && o.attributeWeight < HUGE_VAL)) throw InputError("attribute weight must be finite and >= 0");
     if (!(o.initialRatio > 0.0 && o.initialRatio <= 1.0)) throw InputError("initial ratio must be in (0, 1]");
     if (o.threads < 0) throw InputError("threads must be >= 0");
     if (o.iso && !std::isfinite(*o.iso)) throw InputError("iso-value must be finite");
@@ -142,6 +153,7 @@ private:
     Stopwatch mClock;
     Result mResult;
     std::unique_ptr<Volume> mVol;
+    std::unique_ptr<AttributeSampler> mAttributes;  // Options::attributes, checked at open
     VolumeInfo mInfo;  // a copy: the volume is opened again after counting
     Classifier mCls;
     bool mFlip = false;
@@ -177,6 +189,16 @@ void PipelineRun::openVolume(const VolumeOpener& open)
 {
     mVol = open();
     mInfo = mVol->info();
+    // Attribute grids are checked now, before any voxel is read; they are read after the final pass.
+    mAttributes = std::make_unique<AttributeSampler>(mInfo.file, mOpt.attributes);
+    // A weighted attribute is sampled at every vertex as blocks are extracted: its grid is read now.
+    if (mOpt.attributeWeight > 0) {
+        if (mOpt.attributes.empty()) throw InputError("an attribute weight needs an attribute grid");
+        if (!mAttributes->firstIsScalar())
+            throw InputError(mInfo.file + ": grid '" + mOpt.attributes.front() +
+                             "' is a vector grid; an attribute weight takes a float or double grid");
+        mAttributes->load();
+    }
     // On this open, not one of its own: reading the topology of a large file takes a while.
     if (mOpt.maxMemoryBytes > 0) checkMemoryBudget(mPath, mInfo, mOpt, mOpt.maxMemoryBytes);
     Report& rep = mResult.report;
@@ -235,7 +257,8 @@ void PipelineRun::countFacesForTarget(const VolumeOpener& open)
 
 void PipelineRun::setTarget()
 {
-    mRatio = mOpt.ratio;
+    // A LOD chain is extracted at its finest rate; the final pass makes the coarser levels from it.
+    mRatio = mOpt.lods.empty() ? mOpt.ratio : mOpt.lods.front();
     if (mOpt.targetFaces == 0) return;
     if (mResult.report.facesFull == 0) throw noSurface();
     mRatio = std::min(1.0, double(mOpt.targetFaces) / double(mResult.report.facesFull));
@@ -401,6 +424,7 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     const BlockOrigin& first = mBlocks[mSlabs[si].begin];
     for (size_t v = 0; v < m.keys.size(); ++v)
         if (m.finalAfterBlock[v] && mOrder(edgeBlocks(m.keys[v]).first, first)) m.finalAfterBlock[v] = 0;
+    if (mOpt.attributeWeight > 0) mAttributes->sampleFirst(m.positions, m.attribute);
 }
 
 // The in-order stage: the block's mesh joins its slab, leaves no block still needs are freed,
@@ -525,6 +549,16 @@ Result PipelineRun::finalPass()
     const SlabStats all = whole.stats();
     rep.trace.insert(rep.trace.end(), all.trace.begin() + traced, all.trace.end());
     rep.decimations += all.trace.size() - traced;
+    // Nodes absorbed into the root keep what their own passes accepted.
+    rep.maxErrorAccepted = std::max(all.maxErrorAccepted, whole.decimator().maxErrorAccepted());
+    mAttributes->load();
+    if (mOpt.lods.empty()) {
+        mResult.mesh = whole.decimator().mesh();
+        mResult.mesh.attributes = mAttributes->sample(mResult.mesh.points);
+    } else {
+        // Each level is made from the one before, handed over and let go; the last one is the result.
+        mResult.mesh = makeLevels(whole, rep, mOpt, *mAttributes, mClock);
+    }
     rep.componentsDropped = whole.componentsDropped();
     rep.componentsPruned = whole.componentsPruned();
     if (whole.decimator().faceCount() == 0) {  // every component was below the minimum area
@@ -534,7 +568,6 @@ Result PipelineRun::finalPass()
         throw EmptySurfaceError(s.str());
     }
     rep.secondsFinal = mClock.seconds() - finalStart;
-    mResult.mesh = whole.decimator().mesh();
     rep.facesOut = mResult.mesh.triangles.size();
     rep.vertsOut = mResult.mesh.points.size();
     return rankReport();

@@ -37,6 +37,7 @@ void feed(Mesh&& mesh, const Report& report, MeshSink& sink)
     for (size_t i = 0; i < mesh.triangles.size(); i += kPiece)
         sink.triangles(mesh.triangles.data() + i, std::min(kPiece, mesh.triangles.size() - i));
     std::vector<std::array<uint32_t, 3>>().swap(mesh.triangles);
+    for (const VertexAttribute& a : mesh.attributes) sink.attribute(a);
     sink.end();
 }
 
@@ -51,6 +52,8 @@ Result simplifyGrid(const openvdb::GridBase& grid, const Options& options, Progr
     if (!isScalar(grid))
         throw InputError(label + ": value type " + grid.valueType() + "; only float and double grids can be meshed");
 
+    if (!options.attributes.empty())
+        throw InputError(label + ": attributes are sampled from the other grids of a file; an in-memory grid has none");
     // Read the caller's grid in place: the grid volume never frees voxel buffers.
     openvdb::GridBase::ConstPtr g = grid.copyGrid();  // shares the tree
     Result r = simplifyVolume([&] { return Volume::fromGrid(g, label); }, label, options, progress);

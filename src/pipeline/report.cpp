@@ -14,7 +14,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
         for (const Report::TreeNode& n : r.tree) v.push_back(f(n));
         return v;
     };
-    return {text("input", r.file),
+    std::vector<ReportField> fields{text("input", r.file),
             text("grid", r.grid),
             text("value_type", r.valueType),
             text("grid_class", r.gridClass),
@@ -38,6 +38,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds_final", r.secondsFinal),
             real("seconds_count", r.secondsCount),
             real("peak_rss_mb", r.peakRssMb),
+            real("max_error_accepted", r.maxErrorAccepted),
             integer("ranks", r.ranks),
             reals("rank_seconds", r.rankSeconds),
             reals("rank_peak_rss_mb", r.rankPeakRssMb),
@@ -45,6 +46,18 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             reals("tree_first_slab", column([](const Report::TreeNode& n) { return double(n.firstSlab); })),
             reals("tree_end_slab", column([](const Report::TreeNode& n) { return double(n.endSlab); })),
             reals("tree_seconds", column([](const Report::TreeNode& n) { return n.seconds; }))};
+    // A LOD chain: each level's own counts, after the run's fields (which describe the last level).
+    for (size_t i = 0; i < r.levels.size(); ++i) {
+        const LevelReport& l = r.levels[i];
+        const std::string p = "lod" + std::to_string(i) + "_";
+        fields.push_back(real((p + "ratio").c_str(), l.ratio));
+        fields.push_back(integer((p + "faces_target").c_str(), l.facesTarget));
+        fields.push_back(integer((p + "faces_out").c_str(), l.facesOut));
+        fields.push_back(integer((p + "verts_out").c_str(), l.vertsOut));
+        fields.push_back(real((p + "max_error_accepted").c_str(), l.maxErrorAccepted));
+        fields.push_back(real((p + "seconds").c_str(), l.seconds));
+    }
+    return fields;
 }
 
 } // namespace vdb_isosimp

@@ -1,0 +1,79 @@
+// LOD chains (--lods R1,R2,...) end to end: one run writes STEM_lod0.EXT ... ; each level is closed,
+// manifold and within 2% of its face target; the chain costs at most 1.35x one run at its coarsest
+// rate; its finest level is as good as a run at that rate alone (RMS from the full surface within 2%,
+// by mesh_error); bad chains are usage errors.
+#include "tool_runs.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace {
+
+using namespace vdb_isosimp::testing;
+
+double rmsFromFull(const std::string& dir, const std::string& mesh)
+{
+    const ToolRun e = runTool(dir, q(MESH_ERROR_EXE) + " --json full.ply " + mesh);
+    EXPECT_EQ(e.code, 0) << e.err;
+    return jsonNumber(e.out, "rms", "a_to_b");
+}
+
+TEST(Lods, OneRunWritesEveryLevel)
+{
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
+    ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " noise -n 192 -o noise.vdb").code, 0);
+    // Timed runs, best of two each (the machine may be shared).
+    const std::string exe = q(VDB_ISOSIMP_EXE) + " noise.vdb -q ";
+    double single = HUGE_VAL, chain = HUGE_VAL;
+    for (int i = 0; i < 2; ++i) {
+        const ToolRun one = runTool(dir, exe + "-r 0.01 -o single.ply");
+        ASSERT_EQ(one.code, 0) << one.err;
+        single = std::min(single, one.seconds);
+        const ToolRun lods = runTool(dir, exe + "--lods 0.2,0.05,0.01 -o chain.ply --report chain.json");
+        ASSERT_EQ(lods.code, 0) << lods.err;
+        chain = std::min(chain, lods.seconds);
+    }
+    std::printf("--lods 0.2,0.05,0.01: %.2f s; -r 0.01 alone: %.2f s; ratio %.2f\n", chain, single, chain / single);
+    EXPECT_LE(chain, 1.35 * single);
+    EXPECT_FALSE(exists(dir + "/chain.ply")) << "a chain writes its levels only";
+
+    const std::string report = slurp(dir + "/chain.json");
+    for (int level = 0; level < 3; ++level) {
+        const std::string name = "chain_lod" + std::to_string(level) + ".ply", p = "lod" + std::to_string(level) + "_";
+        const ToolRun stats = runTool(dir, q(MESH_STATS_EXE) + " --json " + name);
+        ASSERT_EQ(stats.code, 0) << name << ": " << stats.err;
+        EXPECT_NE(stats.out.find("\"closed\": true"), std::string::npos) << name;
+        EXPECT_NE(stats.out.find("\"manifold\": true"), std::string::npos) << name;
+        const double faces = jsonNumber(stats.out, "faces"), target = jsonNumber(report, p + "faces_target");
+        std::printf("level %d: %.0f faces, target %.0f (%+.2f%%)\n", level, faces, target, 100 * (faces / target - 1));
+        EXPECT_EQ(faces, jsonNumber(report, p + "faces_out"));
+        EXPECT_NEAR(faces, target, 0.02 * target) << name;
+    }
+
+    // The finest level against a run at its rate alone.
+    ASSERT_EQ(runTool(dir, exe + "-r 1 -o full.ply").code, 0);
+    ASSERT_EQ(runTool(dir, exe + "-r 0.2 -o alone.ply").code, 0);
+    const double chainRms = rmsFromFull(dir, "chain_lod0.ply"), aloneRms = rmsFromFull(dir, "alone.ply");
+    std::printf("RMS from the full surface: level 0 %.6g, -r 0.2 alone %.6g\n", chainRms, aloneRms);
+    EXPECT_NEAR(chainRms, aloneRms, 0.02 * aloneRms);
+}
+
+TEST(Lods, BadChainsAreUsageErrors)
+{
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
+    ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " sphere -n 32 -o s.vdb").code, 0);
+    for (const char* bad : {"--lods 0.2,0.3", "--lods 0.2,0.2", "--lods 0,0.1", "--lods 1.5,0.1", "--lods 0.2,-0.1",
+                            "--lods 0.2,x", "--lods 0.2,0.1 -f 1000", "--lods 0.2,0.1 -r 0.5"}) {
+        const ToolRun r = runTool(dir, q(VDB_ISOSIMP_EXE) + " s.vdb " + bad + " -o out.ply");
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << bad << ": " << r.err;
+        EXPECT_EQ(unexpectedFiles(dir, {"s.vdb"}), "") << bad;
+    }
+}
+
+} // namespace
