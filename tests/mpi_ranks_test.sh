@@ -37,6 +37,20 @@ for V in v ct; do
   done
 done
 
+# What vertices carry beyond position and quadric travels with the pieces: the drift under an error
+# bound, the attribute quadric with an attribute weight; a LOD chain starts from the same root.
+for EXTRA in "--max-error 0.3" "--attributes noise --attribute-weight 2 --ratio 0.05" "--lods 0.2,0.05"; do
+  # shellcheck disable=SC2086
+  "$B/vdb_isosimp" "$W/v.vdb" $EXTRA --batch 1000 --slab-blocks 64 -q -o "$W/x_one.ply"
+  # shellcheck disable=SC2086
+  mpirun -np 2 "$B/vdb_isosimp" "$W/v.vdb" $EXTRA --batch 1000 --slab-blocks 64 -q -o "$W/x_two.ply"
+  for f in x_one.ply x_one_lod0.ply x_one_lod1.ply; do
+    [ -f "$W/$f" ] || continue
+    cmp "$W/$f" "$W/${f/one/two}" || fail "$EXTRA: 2 ranks wrote other bytes ($f)"
+  done
+  echo "$EXTRA: 2 ranks, same bytes as one process"
+done
+
 # Damaged voxels that only the last rank reads (the leaf at z = 96 of 112; rank 0 reads z < 72): the
 # error travels up the tree to rank 0, which alone reports it.
 cp "$W/v.vdb" "$W/bad.vdb"
