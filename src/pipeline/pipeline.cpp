@@ -22,6 +22,7 @@
 
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
@@ -347,6 +348,9 @@ PipelineRun::IntegratorPtr PipelineRun::localSubtree(size_t l, size_t r)
     const size_t m = mergeSplit(l, r);
     IntegratorPtr left, right;
     tbb::parallel_invoke([&] { left = localSubtree(l, m); }, [&] { right = localSubtree(m, r); });
+    // A subtree elsewhere failed (or the run was cancelled): TBB cancels this one too, and a half that
+    // never ran, or a slab cut short, must not be joined. The failure itself reaches the caller.
+    if (!left || !right || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     const double start = mClock.seconds();
     join(*left, right->takePiece(), l, r);
     timed(l, r, start);
@@ -403,6 +407,7 @@ PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
                 tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order,
                                                [&](size_t i) { integrateBlock(*integ, slots[i % tokens]); }));
     });
+    if (tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     integ->finishSlab();
     // Dead entries are dropped before the queue is copied by a merge.
     dec.compactQueue();
