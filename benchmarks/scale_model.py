@@ -18,7 +18,7 @@ import json
 import sys
 
 BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
-MESSAGE_BYTES_PER_FACE = 70.0  # measured: rank_bytes_sent / faces of the subtree (docs/scale.md)
+MESSAGE_BYTES_PER_FACE = 100.0  # measured at 448^3: 94-114 bytes per output face of the subtree sent (docs/scale.md)
 WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
 
 
