@@ -169,9 +169,9 @@ private:
     // below, behind and left of it that this process extracts): at zero the leaf is freed.
     std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
     size_t mRankBlocks = 0;  // blocks this process extracts (all of them without ranks)
-    // Seconds, peak memory and bytes sent of each rank below this one, gathered up the tree with the
-    // meshes; and the seconds of each node made here.
-    std::vector<double> mRankSeconds, mRankPeakRss, mRankBytes;
+    // Seconds, peak memory (MB) and bytes sent of each rank below this one, gathered up the tree with
+    // the meshes; and the seconds of each node made here.
+    std::vector<std::array<double, 3>> mRanksBelow;
     std::mutex mTreeMutex;
     std::vector<Report::TreeNode> mTree;
     void timed(size_t l, size_t r, double start);
@@ -497,18 +497,15 @@ void PipelineRun::releaseSampledLeaves(size_t i)
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
 std::vector<char> PipelineRun::rankMessage(SlabPiece&& piece) const
 {
-    std::vector<double> stats = mRankSeconds, rss = mRankPeakRss, sent = mRankBytes;
-    stats.insert(stats.begin(), mClock.seconds());
-    rss.insert(rss.begin(), peakRssMb());
-    sent.insert(sent.begin(), 0.0);
+    std::vector<std::array<double, 3>> ranks = mRanksBelow;
+    ranks.insert(ranks.begin(), {mClock.seconds(), peakRssMb(), 0.0});
     std::vector<char> out;
-    const uint64_t n = stats.size();
+    const uint64_t n = ranks.size();
     out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
-    for (const std::vector<double>* v : {&stats, &rss, &sent})
-        out.insert(out.end(), reinterpret_cast<const char*>(v->data()), reinterpret_cast<const char*>(v->data() + n));
+    out.insert(out.end(), reinterpret_cast<const char*>(ranks.data()), reinterpret_cast<const char*>(ranks.data() + n));
     writePieceBytes(std::move(piece), out);
     const double bytes = double(out.size());  // this rank's entry: the message itself
-    std::memcpy(out.data() + sizeof n + 2 * n * sizeof(double), &bytes, sizeof bytes);
+    std::memcpy(out.data() + sizeof n + 2 * sizeof(double), &bytes, sizeof bytes);
     return out;
 }
 
@@ -517,14 +514,11 @@ SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
     uint64_t n = 0;
     if (bytes.size() < sizeof n) throw std::runtime_error("merge tree message: bytes end early");
     std::memcpy(&n, bytes.data(), sizeof n);
-    const size_t head = sizeof n + 3 * n * sizeof(double);
+    const size_t head = sizeof n + n * sizeof(std::array<double, 3>);
     if (n > bytes.size() || bytes.size() < head) throw std::runtime_error("merge tree message: bytes end early");
-    for (std::vector<double>* v : {&mRankSeconds, &mRankPeakRss, &mRankBytes}) {
-        const size_t k = v == &mRankSeconds ? 0 : v == &mRankPeakRss ? 1 : 2;
-        std::vector<double> column(n);
-        std::memcpy(column.data(), bytes.data() + sizeof n + k * n * sizeof(double), n * sizeof(double));
-        v->insert(v->end(), column.begin(), column.end());
-    }
+    std::vector<std::array<double, 3>> ranks(n);
+    std::memcpy(ranks.data(), bytes.data() + sizeof n, n * sizeof(std::array<double, 3>));
+    mRanksBelow.insert(mRanksBelow.end(), ranks.begin(), ranks.end());
     return readPieceBytes(bytes.data() + head, bytes.size() - head);
 }
 
@@ -586,12 +580,13 @@ Result PipelineRun::rankReport()
     rep.peakRssMb = peakRssMb();
     rep.ranks = mRanks ? mRanks->ranks() : 1;
     if (mRanks) {
-        rep.rankSeconds = mRankSeconds;
-        rep.rankPeakRssMb = mRankPeakRss;
-        rep.rankBytesSent = mRankBytes;
-        rep.rankSeconds.insert(rep.rankSeconds.begin(), rep.seconds);
-        rep.rankPeakRssMb.insert(rep.rankPeakRssMb.begin(), rep.peakRssMb);
-        rep.rankBytesSent.insert(rep.rankBytesSent.begin(), 0.0);
+        std::vector<std::array<double, 3>> ranks = mRanksBelow;
+        ranks.insert(ranks.begin(), {rep.seconds, rep.peakRssMb, 0.0});
+        for (const auto& r : ranks) {
+            rep.rankSeconds.push_back(r[0]);
+            rep.rankPeakRssMb.push_back(r[1]);
+            rep.rankBytesSent.push_back(r[2]);
+        }
     }
     rep.tree = std::move(mTree);
     return std::move(mResult);
