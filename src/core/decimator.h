@@ -70,7 +70,6 @@ public:
     // and their quadrics summed; the piece is consumed. Its queued edges come along; edges at welded
     // vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
     void absorb(MeshPiece&& piece);
-    void absorb(Decimator& other) { absorb(other.takePiece()); }
 
     // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
     // where every slab's queue is copied).
