@@ -522,7 +522,7 @@ SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
     return readPieceBytes(bytes.data() + head, bytes.size() - head);
 }
 
-// Every slab has joined slab 0: the final pass runs on the whole, and the report is completed.
+// The tree's root holds the whole surface: the final pass runs on it, and the report is completed.
 Result PipelineRun::finalPass()
 {
     Report& rep = mResult.report;
