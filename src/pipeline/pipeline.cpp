@@ -426,9 +426,10 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     m.minValue = *mm.first;
     m.maxValue = *mm.second;
     extractBlock(s, mCls, mInfo.indexToWorld, mFlip, m);
-    const BlockOrigin& first = mBlocks[mSlabs[si].begin];
+    // The block itself is last of the cells around a vertex it finalises; only the first may lie before the slab.
+    const size_t first = mSlabs[si].begin;
     for (size_t v = 0; v < m.keys.size(); ++v)
-        if (m.finalAfterBlock[v] && mOrder(edgeBlocks(m.keys[v]).first, first)) m.finalAfterBlock[v] = 0;
+        if (m.finalAfterBlock[v] && !edgeWithin(m.keys[v], mBlocks, mOrder, first, mBlocks.size())) m.finalAfterBlock[v] = 0;
     if (mOpt.attributeWeight > 0) mAttributes->sampleFirst(m.positions, m.attribute);
 }
 
