@@ -104,12 +104,14 @@ public:
         for (double turn : {Decimator::kDefaultMinNormalCos, 0.0, -0.3, -0.6}) {
             if (bounded && turn != Decimator::kDefaultMinNormalCos) break;
             mDec.setMaxNormalTurn(turn);
-            while (mDec.faceCount() > targetFaces) {
-                mDec.requeueAll();
-                // Under a bound one retry is enough: edges refused for their error come back through
-                // the refused list once the faces around them change, and a full requeue would measure
-                // every edge of the mesh again.
-                if (mDec.decimateTo(targetFaces) == 0 || bounded) break;
+            if (mDec.faceCount() <= targetFaces) break;
+            // Every edge once at this turn; after that only the refused ones whose faces changed since
+            // (decimateTo retries them), until a pass collapses nothing. A full requeue for each such
+            // pass measured every edge of a stuck mesh again to find a handful of collapses.
+            // Under a bound one pass is enough: edges refused for their error come back through the
+            // refused list once the faces around them change.
+            mDec.requeueAll();
+            while (mDec.decimateTo(targetFaces) > 0 && mDec.faceCount() > targetFaces && !bounded) {
             }
         }
         mDec.setMaxNormalTurn(Decimator::kDefaultMinNormalCos);
