@@ -45,12 +45,28 @@ TEST(Lods, OneRunWritesEveryLevel)
         EXPECT_NEAR(faces, target, 0.02 * target) << name;
     }
 
-    // The finest level against a run at its rate alone.
+    // The finest level is the mesh of a run at its rate alone (the header names the level); each
+    // coarser level is as close to the full surface as a run at its rate alone.
     ASSERT_EQ(runTool(dir, exe + "-r 1 -o full.ply").code, 0);
-    ASSERT_EQ(runTool(dir, exe + "-r 0.2 -o alone.ply").code, 0);
-    const double chainRms = rmsFromFull(dir, "chain_lod0.ply"), aloneRms = rmsFromFull(dir, "alone.ply");
-    std::printf("RMS from the full surface: level 0 %.6g, -r 0.2 alone %.6g\n", chainRms, aloneRms);
-    EXPECT_NEAR(chainRms, aloneRms, 0.02 * aloneRms);
+    const auto body = [&](const std::string& name) {
+        const std::string bytes = slurp(dir + "/" + name);
+        return bytes.substr(bytes.find("end_header\n"));
+    };
+    const char* rates[] = {"0.2", "0.05", "0.01"};
+    for (int level = 0; level < 3; ++level) {
+        const std::string chain = "chain_lod" + std::to_string(level) + ".ply", alone = std::string("alone") + rates[level] + ".ply";
+        ASSERT_EQ(runTool(dir, exe + "-r " + rates[level] + " -o " + alone).code, 0);
+        const double chainRms = rmsFromFull(dir, chain), aloneRms = rmsFromFull(dir, alone);
+        std::printf("RMS from the full surface: level %d %.6g, -r %s alone %.6g\n", level, chainRms, rates[level], aloneRms);
+        if (level == 0) EXPECT_TRUE(body(chain) == body(alone)) << "level 0 differs from a run at its rate";
+        else EXPECT_LE(chainRms, 1.05 * aloneRms) << chain;
+    }
+
+    // The same levels from one thread: the chain does not depend on the threads.
+    ASSERT_EQ(runTool(dir, exe + "-j 1 --lods 0.2,0.05,0.01 -o one.ply").code, 0);
+    for (int level = 0; level < 3; ++level)
+        EXPECT_TRUE(slurp(dir + "/one_lod" + std::to_string(level) + ".ply") ==
+                    slurp(dir + "/chain_lod" + std::to_string(level) + ".ply")) << "level " << level;
 }
 
 TEST(Lods, BadChainsAreUsageErrors)

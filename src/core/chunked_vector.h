@@ -3,6 +3,7 @@
 // where std::vector's doubling left up to half the capacity unused and briefly needed 1.5x more at
 // every reallocation (the peak of a run when the slab meshes are merged).
 #pragma once
+#include <algorithm>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -13,6 +14,23 @@ template <typename T, unsigned Shift = 14>
 class ChunkedVector {
 public:
     static constexpr size_t kChunk = size_t(1) << Shift;
+
+    ChunkedVector() = default;
+    ChunkedVector(ChunkedVector&&) noexcept = default;
+    ChunkedVector& operator=(ChunkedVector&&) noexcept = default;
+    // A deep copy: a LOD chain's coarser level starts from a copy of its slab's finer mesh.
+    ChunkedVector(const ChunkedVector& o) : mSize(o.mSize)
+    {
+        for (const auto& c : o.mChunks) {
+            mChunks.push_back(c ? std::make_unique<T[]>(kChunk) : nullptr);
+            if (c) std::copy(c.get(), c.get() + kChunk, mChunks.back().get());
+        }
+    }
+    ChunkedVector& operator=(const ChunkedVector& o)
+    {
+        ChunkedVector copy(o);
+        return *this = std::move(copy);
+    }
 
     size_t size() const { return mSize; }
     bool empty() const { return mSize == 0; }

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace vdb_isosimp {
@@ -126,6 +127,23 @@ public:
         if (mOpt.minComponentArea > 0) mComponentsPruned = mDec.pruneComponents(mOpt.minComponentArea);
     }
 
+    // The same slab one level down a LOD chain: a copy of this mesh decimated like a last batch at the
+    // coarser rate, so the coarser level continues this level's collapses inside the slab (in
+    // parallel with the other slabs) and then joins and finishes like any slab. The copy keeps this
+    // decimator's settings; its interrupter is the caller's to set.
+    std::unique_ptr<Integrator> coarser(double ratio) const
+    {
+        auto c = std::make_unique<Integrator>(mOpt, ratio, mBatch, mSlab);
+        c->mDec = mDec;
+        c->mFacesGenerated = mFacesGenerated;
+        c->mAbsorbedFaces = mAbsorbedFaces;
+        c->mInitial = false;
+        c->decimate(c->batchTarget(double(c->facesGenerated())));
+        c->mDec.compactQueue();
+        c->mStats.maxErrorAccepted = c->mDec.maxErrorAccepted();
+        return c;
+    }
+
     // End of a slab: its last batch is decimated like the others (in parallel with the other slabs),
     // so the serial final pass is left with the seams.
     void finishSlab()
@@ -157,6 +175,7 @@ public:
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }
+    size_t faceCount() const { return mDec.faceCount(); }
     uint64_t componentsDropped() const { return mComponentsDropped; }
     uint64_t componentsPruned() const { return mComponentsPruned; }
     Decimator& decimator() { return mDec; }

@@ -2,6 +2,7 @@
 
 #include "vdb_isosimp/errors.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -20,24 +21,39 @@ void checkLods(const Options& o)
     }
 }
 
-Mesh makeLevels(Integrator& whole, Report& rep, const Options& o, const AttributeSampler& attributes,
-                const Stopwatch& clock)
+std::vector<SlabPiece> takePieces(Levels& node)
+{
+    std::vector<SlabPiece> pieces;
+    for (auto& level : node) {
+        pieces.push_back(level->takePiece());
+        level.reset();
+    }
+    node.clear();
+    return pieces;
+}
+
+Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSampler& attributes, const Stopwatch& clock)
 {
     Mesh mesh;
     for (size_t i = 0; i < o.lods.size(); ++i) {
+        Integrator& whole = *levels[i];
         LevelReport level;
         level.ratio = o.lods[i];
         level.facesTarget = i == 0 ? rep.facesTarget : uint64_t(std::llround(level.ratio * double(rep.facesFull)));
-        if (i > 0) whole.reach(level.facesTarget);
+        if (i > 0) {
+            uint64_t unfinalized = 0;
+            whole.finish(level.facesTarget, whole.facesGenerated(), unfinalized);
+        }
         mesh = whole.decimator().mesh();
         mesh.attributes = attributes.sample(mesh.points);
-        rep.maxErrorAccepted = std::max(rep.maxErrorAccepted, whole.decimator().maxErrorAccepted());
+        rep.maxErrorAccepted = std::max({rep.maxErrorAccepted, whole.stats().maxErrorAccepted, whole.decimator().maxErrorAccepted()});
         level.facesOut = mesh.triangles.size();
         level.vertsOut = mesh.points.size();
         level.maxErrorAccepted = rep.maxErrorAccepted;
         level.seconds = clock.seconds();
         rep.levels.push_back(level);
         if (o.onLevel) o.onLevel(LevelOfDetail{i, mesh, rep.levels.back(), rep});
+        if (i + 1 < o.lods.size()) levels[i].reset();
     }
     // The report's own target and rate are the last level's, like its mesh.
     rep.facesTarget = rep.levels.back().facesTarget;

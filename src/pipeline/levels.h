@@ -1,7 +1,12 @@
-// LOD chains (Options::lods): one extraction at the finest rate, then the final pass decimates the
-// finished surface to each rate in turn. Each level is a snapshot of the same decimator, so a coarser
-// level continues the collapses of the finer one instead of starting over from the full surface.
+// LOD chains (Options::lods): one extraction, and every slab decimated to each rate in turn, a
+// coarser level continuing from a copy of the finer one (Integrator::coarser); each level then joins
+// up the merge tree and gets its final pass like a single-rate run. So the finest level is the same
+// mesh as a run at its rate, and the collapses between levels run slab by slab, in parallel, instead
+// of in one serial pass over the finished finest level.
 #pragma once
+#include <memory>
+#include <vector>
+
 #include "core/schedule.h"
 #include "pipeline/run_stats.h"
 #include "vdb/attribute_sampler.h"
@@ -9,13 +14,20 @@
 
 namespace vdb_isosimp {
 
+// A merge tree node: one integrator per level of the chain, finest first (one without a chain).
+using Levels = std::vector<std::unique_ptr<Integrator>>;
+
+// The node's pieces for its parent, level by level; the integrators are let go.
+std::vector<SlabPiece> takePieces(Levels& node);
+
 // @throw InputError for rates that are out of (0, 1] or not strictly decreasing, or a face target
 // given with them.
 void checkLods(const Options& options);
 
-// `whole` has finished its final pass to the first level's target (report.facesTarget): hands every
-// level, with its attributes, to options.onLevel and fills report.levels; returns the last level.
-Mesh makeLevels(Integrator& whole, Report& report, const Options& options, const AttributeSampler& attributes,
+// The tree's root: the first level has had its final pass to its target (report.facesTarget); the
+// others get theirs here. Hands every level, with its attributes, to options.onLevel, lets each
+// level but the last go once it is handed on, fills report.levels; returns the last level's mesh.
+Mesh makeLevels(Levels& levels, Report& report, const Options& options, const AttributeSampler& attributes,
                 const Stopwatch& clock);
 
 } // namespace vdb_isosimp

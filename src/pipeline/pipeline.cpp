@@ -129,19 +129,19 @@ public:
     Result rankReport();
 
 private:
-    using IntegratorPtr = std::unique_ptr<Integrator>;
-    IntegratorPtr rankSubtree(size_t l, size_t r, size_t a, size_t b);
-    IntegratorPtr localSubtree(size_t l, size_t r);
-    void join(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
-    IntegratorPtr extractSlab(size_t si);
+    Levels rankSubtree(size_t l, size_t r, size_t a, size_t b);
+    Levels localSubtree(size_t l, size_t r);
+    void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
+    Levels extractSlab(size_t si);
+    void watch(Decimator& dec);
     void countLeafSamplers(size_t begin, size_t end);
     void meshBlock(size_t si, size_t i, BlockMesh& m) const;
     void integrateBlock(Integrator& integ, const BlockMesh& m);
     void releaseSampledLeaves(size_t i);
     size_t blockIndex(const BlockOrigin& o) const;
     std::pair<size_t, size_t> rankBlocks() const;
-    std::vector<char> rankMessage(SlabPiece&& piece) const;
-    SlabPiece readRankMessage(const std::vector<char>& bytes);
+    std::vector<char> rankMessage(Levels&& node) const;
+    std::vector<SlabPiece> readRankMessage(const std::vector<char>& bytes);
     EmptySurfaceError noSurface() const;
 
     static constexpr size_t kMallocTrimEveryBlocks = 4096;
@@ -164,7 +164,7 @@ private:
     std::vector<Slab> mSlabs;
     uint64_t mSlabBatch = 0;
     double mVoxelArea = 0.0;
-    IntegratorPtr mRoot;  // the tree's result: the whole surface (rank 0 only, in a distributed run)
+    Levels mRoot;  // the tree's result: the whole surface, per level (rank 0 only, in a distributed run)
     // How many blocks still to be integrated sample each block's leaf (its own block and the up to 7
     // below, behind and left of it that this process extracts): at zero the leaf is freed.
     std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
@@ -300,7 +300,7 @@ bool PipelineRun::runTree()
     }
     const auto [begin, end] = rankBlocks();
     countLeafSamplers(begin, end);
-    IntegratorPtr result;
+    Levels result;
     try {
         result = rankSubtree(node.l, node.r, node.a, node.b);
     } catch (const std::exception& e) {
@@ -312,18 +312,18 @@ bool PipelineRun::runTree()
         mRoot = std::move(result);
         return true;
     }
-    mRanks->send(node.parent, rankMessage(result->takePiece()), {});
+    mRanks->send(node.parent, rankMessage(std::move(result)), {});
     return false;
 }
 
 // Node [l, r) of the tree with ranks [a, b) sharing it (this process is rank a): the left child is
 // made here, the right one by the first rank of its share, received when the left one is done.
-PipelineRun::IntegratorPtr PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
+Levels PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
 {
     if (b - a < 2 || r - l < 2) return localSubtree(l, r);
     const size_t m = mergeSplit(l, r);
     const RankShare share = splitRanks(l, r, a, b);
-    IntegratorPtr left;
+    Levels left;
     try {
         left = rankSubtree(l, m, a, share.leftEnd);
     } catch (...) {
@@ -334,25 +334,25 @@ PipelineRun::IntegratorPtr PipelineRun::rankSubtree(size_t l, size_t r, size_t a
         }
         throw;
     }
-    SlabPiece right = readRankMessage(mRanks->receive(share.rightBegin));
+    std::vector<SlabPiece> right = readRankMessage(mRanks->receive(share.rightBegin));
     const double start = mClock.seconds();
-    join(*left, std::move(right), l, r);
+    join(left, std::move(right), l, r);
     timed(l, r, start);
     return left;
 }
 
 // Node [l, r) in this process: its two halves in parallel (as threads allow), then joined.
-PipelineRun::IntegratorPtr PipelineRun::localSubtree(size_t l, size_t r)
+Levels PipelineRun::localSubtree(size_t l, size_t r)
 {
     if (r - l == 1) return extractSlab(l);
     const size_t m = mergeSplit(l, r);
-    IntegratorPtr left, right;
+    Levels left, right;
     tbb::parallel_invoke([&] { left = localSubtree(l, m); }, [&] { right = localSubtree(m, r); });
     // A subtree elsewhere failed (or the run was cancelled): TBB cancels this one too, and a half that
     // never ran, or a slab cut short, must not be joined. The failure itself reaches the caller.
-    if (!left || !right || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
+    if (left.empty() || right.empty() || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     const double start = mClock.seconds();
-    join(*left, right->takePiece(), l, r);
+    join(left, takePieces(right), l, r);
     timed(l, r, start);
     return left;
 }
@@ -366,25 +366,33 @@ void PipelineRun::timed(size_t l, size_t r, double start)
 
 // Siblings [l, m) and [m, r) join: the right one's mesh moves into the left one's, and the vertices
 // whose cells all lie in slabs [l, r) become final (the seam between them) and are decimated.
-void PipelineRun::join(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
+void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const
 {
+    if (right.size() != left.size()) throw std::runtime_error("merge tree: a node with " + std::to_string(right.size()) +
+                                                              " levels joins one with " + std::to_string(left.size()));
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    left.absorbSlab(std::move(right), [&](EdgeKey k) { return edgeWithin(k, mBlocks, mOrder, begin, end); });
+    for (size_t k = 0; k < left.size(); ++k)
+        left[k]->absorbSlab(std::move(right[k]), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+}
+
+// Decimation passes poll the same progress object, so a cancel request stops them too.
+void PipelineRun::watch(Decimator& dec)
+{
+    if (!mProgress) return;
+    dec.setInterrupter([this, &dec] {
+        std::lock_guard<std::mutex> lock(mProgressMutex);
+        return !mProgress->update(double(mDone) / double(mRankBlocks), dec.faceCount());
+    });
 }
 
 // One slab's blocks: extracted in parallel, integrated (and decimated every batch) in block order.
-PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
+Levels PipelineRun::extractSlab(size_t si)
 {
     const double start = mClock.seconds();
     auto integ = std::make_unique<Integrator>(mOpt, mRatio, mSlabBatch, uint32_t(si));
     Decimator& dec = integ->decimator();
     dec.setVoxelArea(mVoxelArea);
-    // Decimation passes poll the same progress object, so a cancel request stops them too.
-    if (mProgress)
-        dec.setInterrupter([this, &dec] {
-            std::lock_guard<std::mutex> lock(mProgressMutex);
-            return !mProgress->update(double(mDone) / double(mRankBlocks), dec.faceCount());
-        });
+    watch(dec);
     const Slab& slab = mSlabs[si];
     size_t next = slab.begin;
     const size_t tokens = 4 * std::max<size_t>(1, std::thread::hardware_concurrency());
@@ -411,8 +419,16 @@ PipelineRun::IntegratorPtr PipelineRun::extractSlab(size_t si)
     integ->finishSlab();
     // Dead entries are dropped before the queue is copied by a merge.
     dec.compactQueue();
+    Levels levels;
+    levels.push_back(std::move(integ));
+    // A LOD chain's coarser levels continue from the finer one here, slab by slab, in parallel with
+    // the other slabs; then every level joins up the tree on its own.
+    for (size_t k = 1; k < mOpt.lods.size(); ++k) {
+        levels.push_back(levels.back()->coarser(mOpt.lods[k]));
+        watch(levels.back()->decimator());
+    }
     timed(si, si + 1, start);
-    return integ;
+    return levels;
 }
 
 // Marching Cubes on block i of slab si. Thread-safe. A vertex whose first cell (in block order) lies
@@ -496,7 +512,7 @@ void PipelineRun::releaseSampledLeaves(size_t i)
 }
 
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
-std::vector<char> PipelineRun::rankMessage(SlabPiece&& piece) const
+std::vector<char> PipelineRun::rankMessage(Levels&& node) const
 {
     std::vector<std::array<double, 3>> ranks = mRanksBelow;
     ranks.insert(ranks.begin(), {mClock.seconds(), peakRssMb(), 0.0});
@@ -504,13 +520,23 @@ std::vector<char> PipelineRun::rankMessage(SlabPiece&& piece) const
     const uint64_t n = ranks.size();
     out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
     out.insert(out.end(), reinterpret_cast<const char*>(ranks.data()), reinterpret_cast<const char*>(ranks.data() + n));
-    writePieceBytes(std::move(piece), out);
+    // Then the node's levels, each as its length and its bytes.
+    const uint64_t levels = node.size();
+    out.insert(out.end(), reinterpret_cast<const char*>(&levels), reinterpret_cast<const char*>(&levels) + sizeof levels);
+    for (auto& level : node) {
+        const size_t at = out.size();
+        out.resize(at + sizeof(uint64_t));
+        writePieceBytes(level->takePiece(), out);
+        level.reset();
+        const uint64_t length = out.size() - at - sizeof(uint64_t);
+        std::memcpy(out.data() + at, &length, sizeof length);
+    }
     const double bytes = double(out.size());  // this rank's entry: the message itself
     std::memcpy(out.data() + sizeof n + 2 * sizeof(double), &bytes, sizeof bytes);
     return out;
 }
 
-SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
+std::vector<SlabPiece> PipelineRun::readRankMessage(const std::vector<char>& bytes)
 {
     uint64_t n = 0;
     if (bytes.size() < sizeof n) throw std::runtime_error("merge tree message: bytes end early");
@@ -520,7 +546,22 @@ SlabPiece PipelineRun::readRankMessage(const std::vector<char>& bytes)
     std::vector<std::array<double, 3>> ranks(n);
     std::memcpy(ranks.data(), bytes.data() + sizeof n, n * sizeof(std::array<double, 3>));
     mRanksBelow.insert(mRanksBelow.end(), ranks.begin(), ranks.end());
-    return readPieceBytes(bytes.data() + head, bytes.size() - head);
+    size_t at = head;
+    const auto count = [&] {
+        uint64_t x = 0;
+        if (bytes.size() - at < sizeof x) throw std::runtime_error("merge tree message: bytes end early");
+        std::memcpy(&x, bytes.data() + at, sizeof x);
+        at += sizeof x;
+        return x;
+    };
+    std::vector<SlabPiece> levels(count());
+    for (SlabPiece& level : levels) {
+        const uint64_t length = count();
+        if (length > bytes.size() - at) throw std::runtime_error("merge tree message: bytes end early");
+        level = readPieceBytes(bytes.data() + at, length);
+        at += length;
+    }
+    return levels;
 }
 
 // The tree's root holds the whole surface: the final pass runs on it, and the report is completed.
@@ -528,7 +569,7 @@ Result PipelineRun::finalPass()
 {
     Report& rep = mResult.report;
     const double finalStart = mClock.seconds();
-    Integrator& whole = *mRoot;
+    Integrator& whole = *mRoot.front();
     const uint64_t facesGenerated = whole.facesGenerated();
     const SlabStats slabs = whole.stats();
     rep.decimations = slabs.decimations;
@@ -557,11 +598,13 @@ Result PipelineRun::finalPass()
         mResult.mesh.attributes = mAttributes->sample(mResult.mesh.points);
     } else {
         // Each level is made from the one before, handed over and let go; the last one is the result.
-        mResult.mesh = makeLevels(whole, rep, mOpt, *mAttributes, mClock);
+        mResult.mesh = makeLevels(mRoot, rep, mOpt, *mAttributes, mClock);
     }
-    rep.componentsDropped = whole.componentsDropped();
-    rep.componentsPruned = whole.componentsPruned();
-    if (whole.decimator().faceCount() == 0) {  // every component was below the minimum area
+    // The result is the last level's (the only one without a chain).
+    const Integrator& last = *mRoot.back();
+    rep.componentsDropped = last.componentsDropped();
+    rep.componentsPruned = last.componentsPruned();
+    if (last.faceCount() == 0) {  // every component was below the minimum area
         std::ostringstream s;
         s << mPath << ": every component of the surface in grid '" << mInfo.gridName << "' has an area below "
           << mOpt.minComponentArea;
