@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Speed and memory against the in-core cascades, measured in the same run (issue "fast and lean"):
 #   ours (2 threads, 1 thread) vs OpenVDB volumeToMesh + meshopt_simplify vs full extraction + OpenMesh,
-#   on the CT-like noise volume at R = 0.2 and 0.02; then peak RSS on a volume and its 2x up-sampled copy
+#   on the CT-like noise volume at R = 0.2 and 0.02, wall and CPU seconds (user + sys, fastest run each); then peak RSS on a volume and its 2x up-sampled copy
 #   kept to the same face count. Prints a Markdown table with ratios ours / baseline.
 # Usage: benchmarks/perf.sh [SIZE] [--openmesh] [--scale]
 #   SIZE        noise volume edge in voxels (default 448: ~16M faces at full resolution)
@@ -24,8 +24,11 @@ B=build; W=${PERF_WORK:-$(mktemp -d)}; mkdir -p "$W"
 [ -z "${PERF_WORK:-}" ] && trap 'rm -rf "$W"' EXIT
 field() { sed -n "s/.*\"$1\": *\([0-9.e+-]*\).*/\1/p" "$2" | head -1; }
 rms() { "$B/mesh_error" "$1" "$2" --json | tr -d '\n' | sed -n 's/.*"a_to_b": *{[^}]*"rms_pct": *\([0-9.e+-]*\).*/\1/p'; }
-# Peak RSS and wall seconds of a command, from GNU time.
-timed() { /usr/bin/time -f "%e %M" -o "$W/time.txt" "$@" > "$W/out.json"; read -r SEC KB < "$W/time.txt"; MB=$((KB / 1024)); }
+# Wall seconds, CPU seconds (user + sys) and peak RSS of a command, from GNU time.
+timed() {
+  /usr/bin/time -f "%e %U %S %M" -o "$W/time.txt" "$@" > "$W/out.json"
+  read -r SEC USR SYS KB < "$W/time.txt"; MB=$((KB / 1024)); CPU=$(awk -v u="$USR" -v s="$SYS" 'BEGIN { print u + s }')
+}
 # Wall time on this shared 2-core machine varies by 10-15% from run to run for the same binary, so the
 # time comparison runs ours and the cascade alternately PERF_REPEAT times (default 2) and keeps each
 # one's fastest run (and its largest peak RSS).
@@ -39,27 +42,27 @@ ISO=0.3
 FULL=$(field faces_full "$W/full.json")
 echo "noise ${N}^3, iso $ISO: $FULL faces at full resolution; $(nproc) cores"
 echo
-echo "| case | R | faces out | seconds | peak RSS MB | RMS % diag | time / meshopt | RSS / meshopt |"
-echo "|---|---|---|---|---|---|---|---|"
+echo "| case | R | faces out | seconds | CPU s | peak RSS MB | RMS % diag | time / meshopt | CPU / meshopt | RSS / meshopt |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for R in 0.2 0.02; do
-  OS=""; OM=""; MS=""; MM=""
+  OS=""; OC=""; OM=""; MS=""; MC=""; MM=""
   for ((k = 0; k < REPEAT; k++)); do
     timed "$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r $R -j 2 -q -o "$W/ours.ply" --report "$W/ours.json"
-    OS=$(minof "$OS" "$SEC"); OM=$(maxof "$OM" "$MB"); FO=$(field faces_out "$W/ours.json")
+    OS=$(minof "$OS" "$SEC"); OC=$(minof "$OC" "$CPU"); OM=$(maxof "$OM" "$MB"); FO=$(field faces_out "$W/ours.json")
     timed "$B/baseline_meshopt" "$W/noise$N.vdb" --iso $ISO -f "$FO" -o "$W/mo.ply"
-    MS=$(minof "$MS" "$SEC"); MM=$(maxof "$MM" "$MB"); MF=$(field faces_out "$W/out.json")
+    MS=$(minof "$MS" "$SEC"); MC=$(minof "$MC" "$CPU"); MM=$(maxof "$MM" "$MB"); MF=$(field faces_out "$W/out.json")
   done
   OE=$(rms "$W/full.ply" "$W/ours.ply"); ME=$(rms "$W/full.ply" "$W/mo.ply")
   timed "$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r $R -j 1 -q -o "$W/ours1.ply"
-  S1=$SEC; M1=$MB
-  awk -v r=$R -v fo=$FO -v os=$OS -v om=$OM -v oe=$OE -v ms=$MS -v mm=$MM -v mf=$MF -v me=$ME -v s1=$S1 -v m1=$M1 'BEGIN {
-    printf "| ours, 2 threads | %s | %d | %.1f | %d | %.5f | %.2f | %.2f |\n", r, fo, os, om, oe, os/ms, om/mm
-    printf "| ours, 1 thread | %s | %d | %.1f | %d | | %.2f (2 threads: %.2fx faster) | %.2f |\n", r, fo, s1, m1, s1/ms, s1/os, m1/mm
-    printf "| volumeToMesh + meshopt_simplify | %s | %d | %.1f | %d | %.5f | 1 | 1 |\n", r, mf, ms, mm, me }'
+  S1=$SEC; C1=$CPU; M1=$MB
+  awk -v r=$R -v fo=$FO -v os=$OS -v oc=$OC -v om=$OM -v oe=$OE -v ms=$MS -v mc=$MC -v mm=$MM -v mf=$MF -v me=$ME -v s1=$S1 -v c1=$C1 -v m1=$M1 'BEGIN {
+    printf "| ours, 2 threads | %s | %d | %.1f | %.1f | %d | %.5f | %.2f | %.2f | %.2f |\n", r, fo, os, oc, om, oe, os/ms, oc/mc, om/mm
+    printf "| ours, 1 thread | %s | %d | %.1f | %.1f | %d | | %.2f (2 threads: %.2fx faster) | %.2f | %.2f |\n", r, fo, s1, c1, m1, s1/ms, s1/os, c1/mc, m1/mm
+    printf "| volumeToMesh + meshopt_simplify | %s | %d | %.1f | %.1f | %d | %.5f | 1 | 1 | 1 |\n", r, mf, ms, mc, mm, me }'
   if [ "$OPENMESH" = 1 ]; then
     timed "$B/baseline_openmesh" "$W/noise$N.vdb" --iso $ISO -f "$FO" -o "$W/om.ply"
-    awk -v r=$R -v s=$SEC -v m=$MB -v e="$(rms "$W/full.ply" "$W/om.ply")" -v f="$(field faces_out "$W/out.json")" -v ms=$MS -v mm=$MM \
-      'BEGIN { printf "| full extraction + OpenMesh | %s | %d | %.1f | %d | %.5f | %.2f | %.2f |\n", r, f, s, m, e, s/ms, m/mm }'
+    awk -v r=$R -v s=$SEC -v c=$CPU -v m=$MB -v e="$(rms "$W/full.ply" "$W/om.ply")" -v f="$(field faces_out "$W/out.json")" -v ms=$MS -v mc=$MC -v mm=$MM \
+      'BEGIN { printf "| full extraction + OpenMesh | %s | %d | %.1f | %.1f | %d | %.5f | %.2f | %.2f | %.2f |\n", r, f, s, c, m, e, s/ms, c/mc, m/mm }'
   fi
 done
 
