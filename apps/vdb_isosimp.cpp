@@ -495,8 +495,8 @@ int main(int argc, char** argv)
     std::vector<double> lods;
     auto* lodsOpt = app.add_option("--lods", lods,
                    "R1,R2,...: a chain of levels of detail from one run, rates decreasing in (0,1]. Writes\n"
-                   "STEM_lod0.EXT, STEM_lod1.EXT, ... (STEM and EXT from -o): extraction decimates at R1, the\n"
-                   "final pass writes R1, continues to R2, writes it, and so on. Not with --ratio or --faces")
+                   "STEM_lod0.EXT, STEM_lod1.EXT, ... (STEM and EXT from -o): level 0 is the --ratio R1 mesh;\n"
+                   "each slab continues from it to R2, from that to R3, ... Not with --ratio or --faces")
                         ->delimiter(',');
     std::vector<std::string> attributes;
     app.add_option("--attributes", opt.attributes,
