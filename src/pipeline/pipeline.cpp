@@ -34,6 +34,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -341,20 +342,56 @@ Levels PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
     return left;
 }
 
-// Node [l, r) in this process: its two halves in parallel (as threads allow), then joined.
+// Node [l, r) in this process, walked in slab order: as many slabs at once as threads, and each node
+// joined at once by the thread that finishes its second child. Finished nodes waiting for a sibling
+// form one frontier (a post-order walk); splitting the threads between the two halves of every node
+// kept two frontiers open, each node on them holding its seams at full resolution. The tree's shape,
+// hence the mesh, is slabs.h's either way.
 Levels PipelineRun::localSubtree(size_t l, size_t r)
 {
-    if (r - l == 1) return extractSlab(l);
-    const size_t m = mergeSplit(l, r);
-    Levels left, right;
-    tbb::parallel_invoke([&] { left = localSubtree(l, m); }, [&] { right = localSubtree(m, r); });
-    // A subtree elsewhere failed (or the run was cancelled): TBB cancels this one too, and a half that
-    // never ran, or a slab cut short, must not be joined. The failure itself reaches the caller.
-    if (left.empty() || right.empty() || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
-    const double start = mClock.seconds();
-    join(left, takePieces(right), l, r);
-    timed(l, r, start);
-    return left;
+    std::mutex waitingMutex;
+    std::map<std::pair<size_t, size_t>, Levels> waiting;  // finished nodes whose sibling is not
+    Levels whole;
+    size_t next = l;
+    tbb::parallel_pipeline(
+        std::max(1, tbb::this_task_arena::max_concurrency()),
+        indices(next, r) & tbb::make_filter<size_t, void>(tbb::filter_mode::parallel, [&](size_t si) {
+            Levels node = extractSlab(si);
+            size_t nl = si, nr = si + 1;
+            while (nl != l || nr != r) {
+                // The parent of [nl, nr): walked down to from [l, r).
+                size_t pl = l, pr = r, pm = mergeSplit(pl, pr);
+                while (!((pl == nl && pm == nr) || (pm == nl && pr == nr))) {
+                    if (nr <= pm) pr = pm;
+                    else pl = pm;
+                    pm = mergeSplit(pl, pr);
+                }
+                const bool isLeft = nl == pl;
+                Levels sibling;
+                {
+                    std::lock_guard<std::mutex> lock(waitingMutex);
+                    const auto it = waiting.find(isLeft ? std::make_pair(pm, pr) : std::make_pair(pl, pm));
+                    if (it == waiting.end()) {
+                        waiting.emplace(std::make_pair(nl, nr), std::move(node));
+                        return;
+                    }
+                    sibling = std::move(it->second);
+                    waiting.erase(it);
+                }
+                Levels& left = isLeft ? node : sibling;
+                Levels& right = isLeft ? sibling : node;
+                const double start = mClock.seconds();
+                join(left, takePieces(right), pl, pr);
+                timed(pl, pr, start);
+                if (!isLeft) node = std::move(left);
+                nl = pl;
+                nr = pr;
+            }
+            whole = std::move(node);
+        }));
+    // The run was cancelled, or failed elsewhere: no node is complete.
+    if (whole.empty() || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
+    return whole;
 }
 
 void PipelineRun::timed(size_t l, size_t r, double start)
