@@ -25,8 +25,6 @@
 #include <tbb/task_group.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
-#include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 
 #include <algorithm>
