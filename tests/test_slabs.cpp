@@ -60,6 +60,28 @@ TEST(Slabs, EqualRunsCoveringEveryBlockOnce)
 // Every node of the tree is made exactly once, by the first rank of its share; a rank's own node is the
 // highest one it is first in, and it goes to the rank that makes the parent. Checked by walking the
 // tree as the ranks do, for every slab count and rank count up to a few dozen.
+TEST(Slabs, ParentNodeIsTheNodeWhoseChildrenAreTheGivenOne)
+{
+    // Against the tree built top-down: every node's children name it as their parent, in any subtree.
+    for (size_t slabs : {2, 3, 7, 91, 256}) {
+        size_t checked = 0;
+        std::vector<std::pair<size_t, size_t>> nodes{{0, slabs}};
+        while (!nodes.empty()) {
+            const auto [l, r] = nodes.back();
+            nodes.pop_back();
+            if (r - l < 2) continue;
+            const size_t m = mergeSplit(l, r);
+            for (const auto& child : {std::make_pair(l, m), std::make_pair(m, r)}) {
+                EXPECT_EQ(parentNode(0, slabs, child.first, child.second), std::make_pair(l, r)) << slabs;
+                EXPECT_EQ(parentNode(l, r, child.first, child.second), std::make_pair(l, r)) << slabs;
+                nodes.push_back(child);
+                ++checked;
+            }
+        }
+        EXPECT_EQ(checked, 2 * (slabs - 1)) << slabs;
+    }
+}
+
 TEST(Slabs, RankSharesMakeEveryNodeOnce)
 {
     for (size_t slabs = 1; slabs <= 40; ++slabs)

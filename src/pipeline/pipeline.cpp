@@ -139,7 +139,7 @@ private:
     void releaseSampledLeaves(size_t i);
     size_t blockIndex(const BlockOrigin& o) const;
     std::pair<size_t, size_t> rankBlocks() const;
-    std::vector<char> rankMessage(Levels&& node) const;
+    std::vector<char> rankMessage(std::vector<SlabPiece>&& levels) const;
     std::vector<SlabPiece> readRankMessage(const std::vector<char>& bytes);
     EmptySurfaceError noSurface() const;
 
@@ -311,7 +311,7 @@ bool PipelineRun::runTree()
         mRoot = std::move(result);
         return true;
     }
-    mRanks->send(node.parent, rankMessage(std::move(result)), {});
+    mRanks->send(node.parent, rankMessage(takePieces(result)), {});
     return false;
 }
 
@@ -357,13 +357,8 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
             Levels node = extractSlab(si);
             size_t nl = si, nr = si + 1;
             while (nl != l || nr != r) {
-                // The parent of [nl, nr): walked down to from [l, r).
-                size_t pl = l, pr = r, pm = mergeSplit(pl, pr);
-                while (!((pl == nl && pm == nr) || (pm == nl && pr == nr))) {
-                    if (nr <= pm) pr = pm;
-                    else pl = pm;
-                    pm = mergeSplit(pl, pr);
-                }
+                const auto [pl, pr] = parentNode(l, r, nl, nr);
+                const size_t pm = mergeSplit(pl, pr);
                 const bool isLeft = nl == pl;
                 Levels sibling;
                 {
@@ -547,7 +542,7 @@ void PipelineRun::releaseSampledLeaves(size_t i)
 }
 
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
-std::vector<char> PipelineRun::rankMessage(Levels&& node) const
+std::vector<char> PipelineRun::rankMessage(std::vector<SlabPiece>&& levels) const
 {
     std::vector<std::array<double, 3>> ranks = mRanksBelow;
     ranks.insert(ranks.begin(), {mClock.seconds(), peakRssMb(), 0.0});
@@ -556,13 +551,12 @@ std::vector<char> PipelineRun::rankMessage(Levels&& node) const
     out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
     out.insert(out.end(), reinterpret_cast<const char*>(ranks.data()), reinterpret_cast<const char*>(ranks.data() + n));
     // Then the node's levels, each as its length and its bytes.
-    const uint64_t levels = node.size();
-    out.insert(out.end(), reinterpret_cast<const char*>(&levels), reinterpret_cast<const char*>(&levels) + sizeof levels);
-    for (auto& level : node) {
+    const uint64_t count = levels.size();
+    out.insert(out.end(), reinterpret_cast<const char*>(&count), reinterpret_cast<const char*>(&count) + sizeof count);
+    for (SlabPiece& level : levels) {
         const size_t at = out.size();
         out.resize(at + sizeof(uint64_t));
-        writePieceBytes(level->takePiece(), out);
-        level.reset();
+        writePieceBytes(std::move(level), out);
         const uint64_t length = out.size() - at - sizeof(uint64_t);
         std::memcpy(out.data() + at, &length, sizeof length);
     }

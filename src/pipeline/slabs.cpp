@@ -19,6 +19,18 @@ std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t coun
     return slabs;
 }
 
+std::pair<size_t, size_t> parentNode(size_t l, size_t r, size_t nl, size_t nr)
+{
+    // Walked down from [l, r) into the child that holds [nl, nr), until that child is [nl, nr).
+    size_t m = mergeSplit(l, r);
+    while (!((l == nl && m == nr) || (m == nl && r == nr))) {
+        if (nr <= m) r = m;
+        else l = m;
+        m = mergeSplit(l, r);
+    }
+    return {l, r};
+}
+
 RankShare splitRanks(size_t l, size_t r, size_t a, size_t b)
 {
     const size_t m = mergeSplit(l, r);

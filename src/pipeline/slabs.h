@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace vdb_isosimp {
@@ -61,6 +62,9 @@ std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t coun
 // The merge tree over slabs [0, S): node [l, r) with r - l > 1 joins its children [l, m) and [m, r)
 // at m = mergeSplit(l, r), the left half the larger. Its depth is ceil(log2 S).
 inline size_t mergeSplit(size_t l, size_t r) { return l + (r - l + 1) / 2; }
+
+// The parent of node [nl, nr) in the subtree rooted at [l, r) (which must hold it and differ from it).
+std::pair<size_t, size_t> parentNode(size_t l, size_t r, size_t nl, size_t nr);
 
 // Which ranks work on node [l, r) of the tree, given ranks [a, b) for it: the children get shares
 // of the ranks in proportion to their slabs (each at least one while there are two or more ranks).
