@@ -289,6 +289,42 @@ TEST(Decimator, PieceBytesThatEndEarlyAreRefused)
     EXPECT_NO_THROW(readPieceBytes(bytes.data(), bytes.size()));
 }
 
+TEST(Decimator, RelaxedTurnRetriesFoldsNotTopology)
+{
+    // A flat ellipsoid decimated until stuck at the default turn: what is left are pairs that fold a
+    // face (the rim) and pairs the link condition refuses. Tetrahedra beside it are refused for
+    // their topology only.
+    BlockMesh b = ellipsoid(5, {1, 1, 0.1}, 10.0);
+    const BlockMesh t = tetrahedra(20);
+    const uint32_t base = uint32_t(b.keys.size());
+    for (size_t k = 0; k < t.keys.size(); ++k) {
+        b.keys.push_back(makeEdgeKey(1000 + int32_t(k), 0, 0, 0));
+        b.positions.push_back({t.positions[k][0], t.positions[k][1] + 50, t.positions[k][2]});
+        b.finalAfterBlock.push_back(1);
+    }
+    for (const auto& f : t.triangles) b.triangles.push_back({base + f[0], base + f[1], base + f[2]});
+    Decimator d;
+    d.addBlock(b);
+    while (d.decimateTo(0) > 0) {
+    }
+    const size_t stuck = d.faceCount();
+    Decimator all = d;
+    const uint64_t before = d.collapseAttempts();
+    d.retryFolds();
+    EXPECT_EQ(d.decimateTo(0), 0u);
+    all.requeueAll();
+    EXPECT_EQ(all.decimateTo(0), 0u);
+    std::printf("stuck at %zu faces; a retry of the folds tries %llu pairs, a full requeue %llu\n", stuck,
+                (unsigned long long)(d.collapseAttempts() - before), (unsigned long long)(all.collapseAttempts() - before));
+    EXPECT_GT(d.collapseAttempts() - before, 0u);
+    EXPECT_LE(d.collapseAttempts() - before + 120, all.collapseAttempts() - before);  // the tetrahedra's 120 pairs wait
+    // A relaxed turn lets the folding pairs go.
+    d.setMaxNormalTurn(-0.6);
+    d.retryFolds();
+    EXPECT_GT(d.decimateTo(0), 0u);
+    EXPECT_LT(d.faceCount(), stuck);
+}
+
 TEST(Decimator, ErrorBoundHoldsOnASphere)
 {
     // A finely subdivided sphere of radius 10 decimated as far as the bound allows: every vertex, face

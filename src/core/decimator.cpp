@@ -458,7 +458,7 @@ void Decimator::absorb(MeshPiece&& piece)
     // Refused entries come along marked as changed: retried in the next pass.
     for (const auto& r : piece.refused) {
         const uint32_t a = std::min(remap[r[0]], remap[r[1]]), b = std::max(remap[r[0]], remap[r[1]]);
-        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1});
+        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1, false});
     }
     piece.refused = {};
     for (size_t i = 0; i < piece.faces.size(); ++i) {
@@ -709,7 +709,7 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     const size_t count = placements(a, b, places, false);
     size_t place = 0;
     while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
-    if (place == count) return Outcome::Refused;
+    if (place == count) return Outcome::Folds;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
     double moved = displacement(a, b, places[place].geoCost);
@@ -761,14 +761,18 @@ size_t Decimator::decimateTo(size_t targetFaces)
         // The queued cost bounds every placement's from below (of the geometry; an attribute's part
         // would not): past the error bound already, the pair waits without the topology checks.
         if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
-            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring});
+            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, false});
             continue;
         }
         double cost;
-        switch (collapse(a, b, c.cost(), &cost)) {
+        const Outcome outcome = collapse(a, b, c.cost(), &cost);
+        switch (outcome) {
         case Outcome::Collapsed: ++collapses; break;
         case Outcome::Refused:
-        case Outcome::TooFar: mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring}); break;
+        case Outcome::Folds:
+        case Outcome::TooFar:
+            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, outcome == Outcome::Folds});
+            break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }
     }
@@ -981,6 +985,16 @@ void Decimator::compactQueue()
 {
     dropDeadEntries();
     mHeap.shrinkToFit();
+}
+
+void Decimator::retryFolds()
+{
+    size_t kept = 0;
+    for (const Refused& r : mRefused) {
+        if (!r.folds) mRefused[kept++] = r;
+        else if (edgeExists(r.a, r.b)) push(r.a, r.b);
+    }
+    mRefused.resize(kept);
 }
 
 void Decimator::requeueAll()
