@@ -378,7 +378,7 @@ MeshPiece Decimator::takePiece()
     mHeap.clear();
     mHeap.shrinkToFit();
     for (const Refused& r : mRefused)
-        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b]});
+        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds});
     mRefused = {};
     // Open vertices in key order (hash-map order is not part of the output contract).
     piece.open.reserve(mOpen.size());
@@ -455,10 +455,12 @@ void Decimator::absorb(MeshPiece&& piece)
         else mHeap.append(e);
     }
     piece.queue = {};
-    // Refused entries come along marked as changed: retried in the next pass.
+    // Refused pairs come along as unchanged: both ends are final, so every face around them is
+    // already in the piece and the merge adds none (it welds open vertices only). Retrying them at
+    // every node of the merge tree tried each closed tetrahedron of a noisy surface once per level.
     for (const auto& r : piece.refused) {
-        const uint32_t a = std::min(remap[r[0]], remap[r[1]]), b = std::max(remap[r[0]], remap[r[1]]);
-        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring - 1, false});
+        const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
+        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, r.folds});
     }
     piece.refused = {};
     for (size_t i = 0; i < piece.faces.size(); ++i) {

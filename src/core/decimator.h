@@ -46,7 +46,13 @@ struct MeshPiece {
     ChunkedVector<std::array<uint32_t, 3>> faces;
     std::vector<std::pair<EdgeKey, uint32_t>> open;  // sorted by key
     std::vector<Queued> queue;                        // in the queue's array order
-    std::vector<std::array<uint32_t, 2>> refused;
+    // Refused pairs: their faces are all there (both ends are final), so a merge changes nothing
+    // around them and they stay refused until their faces change, remembering why.
+    struct Refused {
+        uint32_t a, b;
+        bool folds;
+    };
+    std::vector<Refused> refused;
     // Per vertex, only where the decimator keeps them: the drift under an error bound, and the
     // attribute quadric (written around the vertex) with an attribute weight.
     ChunkedVector<float> drift;

@@ -57,7 +57,7 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     Writer w(out);
     MeshPiece& m = piece.mesh;
     out.reserve(out.size() + 128 + 44 * piece.stats.trace.size() + 105 * m.vertices.size() + 12 * m.faces.size() +
-                12 * m.open.size() + 13 * m.queue.size() + 8 * m.refused.size());
+                12 * m.open.size() + 13 * m.queue.size() + 9 * m.refused.size());
     w.put(kMagic);
     w.put(piece.facesGenerated);
     w.put(piece.stats.decimations);
@@ -100,8 +100,9 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     }
     w.put(uint64_t(m.refused.size()));
     for (const auto& r : m.refused) {
-        w.put(r[0]);
-        w.put(r[1]);
+        w.put(r.a);
+        w.put(r.b);
+        w.put(uint8_t(r.folds));
     }
     w.put(uint64_t(m.drift.size()));
     for (size_t i = 0; i < m.drift.size(); ++i) w.put(m.drift[i]);
@@ -165,11 +166,12 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
         c.stale = r.get<uint8_t>() != 0;
         if (c.a >= vertices || c.b >= vertices) throw std::runtime_error("merge tree piece: a queued edge is missing");
     }
-    m.refused.resize(r.count(8));
+    m.refused.resize(r.count(9));
     for (auto& x : m.refused) {
-        x[0] = r.get<uint32_t>();
-        x[1] = r.get<uint32_t>();
-        if (x[0] >= vertices || x[1] >= vertices) throw std::runtime_error("merge tree piece: a refused edge is missing");
+        x.a = r.get<uint32_t>();
+        x.b = r.get<uint32_t>();
+        x.folds = r.get<uint8_t>() != 0;
+        if (x.a >= vertices || x.b >= vertices) throw std::runtime_error("merge tree piece: a refused edge is missing");
     }
     const uint64_t drift = r.count(4);
     if (drift != 0 && drift != vertices) throw std::runtime_error("merge tree piece: drift for some vertices only");
