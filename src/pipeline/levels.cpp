@@ -2,6 +2,9 @@
 
 #include "vdb_isosimp/errors.h"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -32,6 +35,20 @@ std::vector<SlabPiece> takePieces(Levels& node)
     return pieces;
 }
 
+void forEachLevel(Levels& node, const std::function<void(size_t, Integrator&)>& f)
+{
+    if (node.size() == 1) return f(0, *node.front());
+    // Isolated: a thread that waits here for the other levels runs only them, never a slab of the
+    // tree (which would open another slab's seams while this node holds its own).
+    tbb::this_task_arena::isolate([&] { tbb::parallel_for(size_t(0), node.size(), [&](size_t k) { f(k, *node[k]); }); });
+}
+
+uint64_t levelTarget(const Options& o, const Report& rep, size_t level)
+{
+    if (level == 0) return rep.facesTarget;
+    return uint64_t(std::llround(o.lods[level] * double(rep.facesFull)));
+}
+
 Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSampler& attributes, const Stopwatch& clock)
 {
     Mesh mesh;
@@ -39,11 +56,7 @@ Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSa
         Integrator& whole = *levels[i];
         LevelReport level;
         level.ratio = o.lods[i];
-        level.facesTarget = i == 0 ? rep.facesTarget : uint64_t(std::llround(level.ratio * double(rep.facesFull)));
-        if (i > 0) {
-            uint64_t unfinalized = 0;
-            whole.finish(level.facesTarget, whole.facesGenerated(), unfinalized);
-        }
+        level.facesTarget = levelTarget(o, rep, i);
         mesh = whole.decimator().mesh();
         mesh.attributes = attributes.sample(mesh.points);
         rep.maxErrorAccepted = std::max({rep.maxErrorAccepted, whole.stats().maxErrorAccepted, whole.decimator().maxErrorAccepted()});

@@ -4,6 +4,8 @@
 // mesh as a run at its rate, and the collapses between levels run slab by slab, in parallel, instead
 // of in one serial pass over the finished finest level.
 #pragma once
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -20,13 +22,21 @@ using Levels = std::vector<std::unique_ptr<Integrator>>;
 // The node's pieces for its parent, level by level; the integrators are let go.
 std::vector<SlabPiece> takePieces(Levels& node);
 
+// Runs `f` on every level of a node at once (a merge, the final pass): the levels are independent
+// meshes, so a chain's node takes as long as its slowest level instead of the sum of all.
+void forEachLevel(Levels& node, const std::function<void(size_t level, Integrator& integrator)>& f);
+
+// The face target of level `level` of a chain: the report's target for the first (a run without a
+// chain has that one only), the level's rate of the full surface for the others.
+uint64_t levelTarget(const Options& options, const Report& report, size_t level);
+
 // @throw InputError for rates that are out of (0, 1] or not strictly decreasing, or a face target
 // given with them.
 void checkLods(const Options& options);
 
-// The tree's root: the first level has had its final pass to its target (report.facesTarget); the
-// others get theirs here. Hands every level, with its attributes, to options.onLevel, lets each
-// level but the last go once it is handed on, fills report.levels; returns the last level's mesh.
+// The tree's root, every level after its final pass (levelTarget): hands every level, with its
+// attributes, to options.onLevel, lets each level but the last go once it is handed on, fills
+// report.levels; returns the last level's mesh.
 Mesh makeLevels(Levels& levels, Report& report, const Options& options, const AttributeSampler& attributes,
                 const Stopwatch& clock);
 

@@ -401,8 +401,9 @@ void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, s
     if (right.size() != left.size()) throw std::runtime_error("merge tree: a node with " + std::to_string(right.size()) +
                                                               " levels joins one with " + std::to_string(left.size()));
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    for (size_t k = 0; k < left.size(); ++k)
-        left[k]->absorbSlab(std::move(right[k]), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+    forEachLevel(left, [&](size_t k, Integrator& level) {
+        level.absorbSlab(std::move(right[k]), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+    });
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
@@ -611,11 +612,14 @@ Result PipelineRun::finalPass()
     rep.ratio = mRatio;
     rep.facesTarget = mOpt.targetFaces > 0 ? std::min<uint64_t>(mOpt.targetFaces, rep.facesFull)
                                            : uint64_t(std::llround(mRatio * double(rep.facesFull)));
-    uint64_t unfinalized = 0;
+    std::vector<uint64_t> unfinalized(mRoot.size(), 0);
     const size_t seamVertices = whole.decimator().openVertices();
     const size_t traced = slabs.trace.size();
-    whole.finish(rep.facesTarget, facesGenerated, unfinalized);
-    rep.unfinalizedAtEnd = unfinalized - seamVertices;
+    // A chain's levels get their final passes at once.
+    forEachLevel(mRoot, [&](size_t k, Integrator& level) {
+        level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
+    });
+    rep.unfinalizedAtEnd = unfinalized.front() - seamVertices;
     const SlabStats all = whole.stats();
     rep.trace.insert(rep.trace.end(), all.trace.begin() + traced, all.trace.end());
     rep.decimations += all.trace.size() - traced;
