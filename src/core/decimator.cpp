@@ -378,7 +378,7 @@ MeshPiece Decimator::takePiece()
     mHeap.clear();
     mHeap.shrinkToFit();
     for (const Refused& r : mRefused)
-        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds});
+        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
     mRefused = {};
     // Open vertices in key order (hash-map order is not part of the output contract).
     piece.open.reserve(mOpen.size());
@@ -460,7 +460,7 @@ void Decimator::absorb(MeshPiece&& piece)
     // every node of the merge tree tried each closed tetrahedron of a noisy surface once per level.
     for (const auto& r : piece.refused) {
         const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
-        mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, r.folds});
+        mRefused.push_back(refusal(a, b, r.folds));
     }
     piece.refused = {};
     for (size_t i = 0; i < piece.faces.size(); ++i) {
@@ -741,7 +741,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
     size_t kept = 0;
     for (const Refused& r : mRefused) {
         if (!mMeta[r.a].alive || !mMeta[r.b].alive) continue;
-        if (mMeta[r.a].ring + mMeta[r.b].ring == r.stamp) mRefused[kept++] = r;
+        if (!ringsChanged(r)) mRefused[kept++] = r;
         else if (edgeExists(r.a, r.b)) push(r.a, r.b);
     }
     mRefused.resize(kept);
@@ -763,7 +763,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         // The queued cost bounds every placement's from below (of the geometry; an attribute's part
         // would not): past the error bound already, the pair waits without the topology checks.
         if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
-            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, false});
+            mRefused.push_back(refusal(a, b, false));
             continue;
         }
         double cost;
@@ -773,7 +773,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         case Outcome::Refused:
         case Outcome::Folds:
         case Outcome::TooFar:
-            mRefused.push_back({a, b, mMeta[a].ring + mMeta[b].ring, outcome == Outcome::Folds});
+            mRefused.push_back(refusal(a, b, outcome == Outcome::Folds));
             break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }

@@ -288,12 +288,20 @@ private:
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     QuadHeap<Candidate> mHeap;
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
-    // the sum of both ends' ring counters at refusal, so a collapse that cannot succeed (a closed
+    // the sum of both ends' ring counters at refusal (its low 31 bits: the record stays 12 bytes, and
+    // there can be hundreds of thousands at a merge), so a collapse that cannot succeed (a closed
     // tetrahedron in noisy data) is not tried again at every batch.
     struct Refused {
-        uint32_t a, b, stamp;
-        bool folds;  // refused for its placements' faces, not its topology (retryFolds)
+        uint32_t a, b;
+        uint32_t stamp : 31;
+        uint32_t folds : 1;  // refused for its placements' faces, not its topology (retryFolds)
     };
+    static_assert(sizeof(Refused) == 12, "refused pairs stay 12 bytes");
+    Refused refusal(uint32_t a, uint32_t b, bool folds) const
+    {
+        return {a, b, (mMeta[a].ring + mMeta[b].ring) & 0x7fffffffu, folds};
+    }
+    bool ringsChanged(const Refused& r) const { return refusal(r.a, r.b, false).stamp != r.stamp; }
     std::vector<Refused> mRefused;
 
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
