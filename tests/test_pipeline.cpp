@@ -210,6 +210,25 @@ TEST(Pipeline, ClosedManifoldOutwardAtEveryRatio)
         }
 }
 
+TEST(Pipeline, EveryJoinDecimatesWhenSlabsAreSmall)
+{
+    // Slabs of 32 blocks stay under their share of the batch, so none leaves its initial phase; every
+    // node of the merge tree must still decimate when it joins, so the final pass starts within the
+    // deferral room of its target, not at full resolution.
+    Options o = ratioOptions(0.05);
+    o.blocksPerSlab = 32;
+    const Result r = simplifyFile(sphereFile(), o);
+    ASSERT_GE(r.report.slabs, 16u);
+    const auto last = std::find_if(r.report.trace.begin(), r.report.trace.end(),
+                                   [&](const DecimationRecord& d) { return d.facesGenerated == r.report.facesFull; });
+    ASSERT_NE(last, r.report.trace.end());
+    std::printf("%zu slabs; the final pass starts at %llu faces for a target of %llu (%llu at full resolution)\n",
+                size_t(r.report.slabs), (unsigned long long)last->facesBefore, (unsigned long long)r.report.facesTarget,
+                (unsigned long long)r.report.facesFull);
+    EXPECT_LE(last->facesBefore, r.report.facesTarget + o.batchFaces / 2);
+    expectClosedOutward(r.mesh, false, "sphere, small slabs");
+}
+
 // The scale run's volume kind (make_volume gyroid-band: a narrow-band level set of the gyroid clipped to
 // a box), small: closed and outward at full resolution and simplified, enclosing the same volume.
 TEST(Pipeline, GyroidBandIsClosedAtFullResolutionAndSimplified)

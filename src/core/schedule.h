@@ -88,6 +88,10 @@ public:
     {
         mFacesGenerated = facesGenerated;  // the whole surface's, merged slabs included
         mAbsorbedFaces = 0;
+        // The merged nodes' numbers join this node's own first, so the final pass's records end the
+        // trace (stats() lists a node's own records before those of the nodes it absorbed).
+        mStats.add(mAbsorbed);
+        mAbsorbed = SlabStats{};
         unfinalized = mDec.finalizeRemaining();
         // The merged queue holds every slab's edges plus the welded seam's.
         reach(targetFaces);
@@ -147,10 +151,14 @@ public:
     }
 
     // End of a slab: its last batch is decimated like the others (in parallel with the other slabs),
-    // so the serial final pass is left with the seams.
+    // so the serial final pass is left with the seams. The initial phase ends here too: it belongs to
+    // a slab's first batches, and a slab too small to leave it (under B faces, as at a corner of the
+    // volume) kept every node it is the first slab of from decimating at its joins, so an undecimated
+    // mesh went up the tree's left edge to the root.
     void finishSlab()
     {
-        if (mSinceLast > 0 && !mInitial) decimate(batchTarget(double(mFacesGenerated)));
+        mInitial = false;
+        if (mSinceLast > 0) decimate(batchTarget(double(mFacesGenerated)));
         mSinceLast = 0;
         mStats.maxErrorAccepted = mDec.maxErrorAccepted();
     }
@@ -173,7 +181,7 @@ public:
         mDec.finalizeOpen(closes);
         mAbsorbedFaces += sibling.facesGenerated;
         mAbsorbed.add(sibling.stats);
-        if (!mInitial) decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+        decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }
