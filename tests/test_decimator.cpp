@@ -49,7 +49,7 @@ TEST(Decimator, ClosedTetrahedraAreRefusedOnceNotAtEveryPass)
     for (int pass = 0; pass < 5; ++pass) EXPECT_EQ(d.decimateTo(0), 0u);
     EXPECT_EQ(d.collapseAttempts(), 300u);
     EXPECT_EQ(d.faceCount(), 200u);
-    // A full requeue (the final pass does one) tries them all again.
+    // A full requeue tries them all again.
     d.requeueAll();
     EXPECT_EQ(d.decimateTo(0), 0u);
     EXPECT_EQ(d.collapseAttempts(), 600u);

@@ -738,13 +738,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
     size_t collapses = 0;
     // Edges refused earlier (link condition, fold-overs) get another chance once the faces around an
     // end have changed; the others stay refused without a queue round trip.
-    size_t kept = 0;
-    for (const Refused& r : mRefused) {
-        if (!mMeta[r.a].alive || !mMeta[r.b].alive) continue;
-        if (!ringsChanged(r)) mRefused[kept++] = r;
-        else if (edgeExists(r.a, r.b)) push(r.a, r.b);
-    }
-    mRefused.resize(kept);
+    retryRefused([&](const Refused& r) { return ringsChanged(r); });
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = mHeap.pop();
@@ -991,12 +985,7 @@ void Decimator::compactQueue()
 
 void Decimator::retryFolds()
 {
-    size_t kept = 0;
-    for (const Refused& r : mRefused) {
-        if (!r.folds) mRefused[kept++] = r;
-        else if (edgeExists(r.a, r.b)) push(r.a, r.b);
-    }
-    mRefused.resize(kept);
+    retryRefused([](const Refused& r) { return r.folds != 0; });
 }
 
 void Decimator::requeueAll()

@@ -303,6 +303,19 @@ private:
     }
     bool ringsChanged(const Refused& r) const { return refusal(r.a, r.b, false).stamp != r.stamp; }
     std::vector<Refused> mRefused;
+    // The refused pairs `retry` picks go back to the queue (those still an edge); the others of living
+    // vertices stay refused.
+    template <typename Retry>
+    void retryRefused(Retry retry)
+    {
+        size_t kept = 0;
+        for (const Refused& r : mRefused) {
+            if (!mMeta[r.a].alive || !mMeta[r.b].alive) continue;
+            if (!retry(r)) mRefused[kept++] = r;
+            else if (edgeExists(r.a, r.b)) push(r.a, r.b);
+        }
+        mRefused.resize(kept);
+    }
 
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
     uint64_t mFinalizations = 0, mAttempts = 0;
