@@ -52,10 +52,10 @@ TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
 TEST(QuadHeap, SiblingGroupsStartOnCacheLines)
 {
     QuadHeap<Entry> heap;
-    for (uint32_t i = 0; i < 100; ++i) heap.push({i, i, 0});
-    // Logical entry i sits at begin() + i; its children 4i+1.. must start a 64-byte line.
-    for (size_t i = 0; i < 20; ++i)
-        EXPECT_EQ(reinterpret_cast<uintptr_t>(heap.begin() + 4 * i + 1) % 64, 0u) << i;
+    for (uint32_t i = 0; i < 20000; ++i) heap.push({i, i, 0});  // several chunks
+    // The children 4i+1.. of logical entry i must start a 64-byte line, in every chunk.
+    for (size_t i = 0; 4 * i + 1 < heap.size(); ++i)
+        ASSERT_EQ(reinterpret_cast<uintptr_t>(&heap.entry(4 * i + 1)) % 64, 0u) << i;
 }
 
 } // namespace

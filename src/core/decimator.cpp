@@ -372,11 +372,9 @@ MeshPiece Decimator::takePiece()
     std::vector<uint32_t> dense(mMeta.size(), UINT32_MAX);
     for (uint32_t v = 0, n = 0; v < mMeta.size(); ++v)
         if (mMeta[v].alive) dense[v] = n++;
-    piece.queue.reserve(mHeap.size());
-    for (const Candidate& c : mHeap)
-        if (mMeta[c.a()].alive && mMeta[c.b].alive) piece.queue.push_back({c.costBits(), dense[c.a()], dense[c.b], !current(c)});
-    mHeap.clear();
-    mHeap.shrinkToFit();
+    mHeap.drain([&](const Candidate& c) {
+        if (mMeta[c.a()].alive && mMeta[c.b].alive) piece.queue.emplace_back() = {c.costBits(), dense[c.a()], dense[c.b], !current(c)};
+    });
     for (const Refused& r : mRefused)
         if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
     mRefused = {};
@@ -427,7 +425,8 @@ void Decimator::absorb(MeshPiece&& piece)
         }
     }
     piece.open = {};
-    constexpr size_t kVertChunk = decltype(piece.vertices)::kChunk, kFaceChunk = decltype(piece.faces)::kChunk;
+    constexpr size_t kVertChunk = decltype(piece.vertices)::kChunk, kFaceChunk = decltype(piece.faces)::kChunk,
+                     kQueueChunk = decltype(piece.queue)::kChunk;
     for (uint32_t v = 0; v < n; ++v) {
         if (remap[v] == UINT32_MAX) {
             const MeshPiece::Vertex& theirs = piece.vertices[v];
@@ -440,11 +439,9 @@ void Decimator::absorb(MeshPiece&& piece)
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
-    // Reserved with room for the seam's edges only: doubling could leave half of the largest array of
-    // the run unused.
-    mHeap.reserve(mHeap.size() + piece.queue.size() + piece.queue.size() / 16 + 4096);
     const bool pushEach = mHeap.size() > piece.queue.size();
-    for (const MeshPiece::Queued& c : piece.queue) {
+    for (size_t i = 0; i < piece.queue.size(); ++i) {
+        const MeshPiece::Queued& c = piece.queue[i];
         const uint32_t a = remap[c.a], b = remap[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
         const uint32_t stamp = mMeta[a].version + mMeta[b].version - (c.stale ? 1u : 0u);
@@ -453,6 +450,7 @@ void Decimator::absorb(MeshPiece&& piece)
         const Candidate e = Candidate::make(c.costBits, std::min(a, b), std::max(a, b), stamp);
         if (pushEach) mHeap.push(e);
         else mHeap.append(e);
+        if ((i + 1) % kQueueChunk == 0) piece.queue.releaseChunk(i / kQueueChunk);
     }
     piece.queue = {};
     // Refused pairs come along as unchanged: both ends are final, so every face around them is
@@ -1000,20 +998,52 @@ void Decimator::requeueAll()
     }
 }
 
-Mesh Decimator::mesh() const
+// verticesRead(c) / facesRead(c): chunk c of the vertex / face arrays has been read and is not read again.
+template <typename VerticesRead, typename FacesRead>
+Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) const
 {
     Mesh m;
     m.points.reserve(mVertexCount);
     m.triangles.reserve(mFaceCount);
     std::vector<uint32_t> remap(mMeta.size(), UINT32_MAX);
     // Vertices and faces in slot order: deterministic for a deterministic input sequence.
+    constexpr size_t kVertChunk = decltype(mMeta)::kChunk, kFaceChunk = decltype(mFaces)::kChunk;
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
-        if (!mMeta[v].alive) continue;
-        remap[v] = uint32_t(m.points.size());
-        m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
+        if (mMeta[v].alive) {
+            remap[v] = uint32_t(m.points.size());
+            m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
+        }
+        if ((v + 1) % kVertChunk == 0) verticesRead(v / kVertChunk);
     }
-    for (const Face& f : mFaces)
+    for (size_t i = 0; i < mFaces.size(); ++i) {
+        const Face& f = mFaces[i];
         if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+        if ((i + 1) % kFaceChunk == 0) facesRead(i / kFaceChunk);
+    }
+    return m;
+}
+
+Mesh Decimator::mesh() const
+{
+    return collectMesh([](size_t) {}, [](size_t) {});
+}
+
+Mesh Decimator::takeMesh()
+{
+    mHeap = {};
+    mRefused = {};
+    mOpen = {};
+    mFreeVerts = {};
+    mFreeFaces = {};
+    mDrift = {};
+    mAttrQ = {};
+    Mesh m = collectMesh(
+        [this](size_t c) {
+            mGeom.releaseChunk(c);
+            mMeta.releaseChunk(c);
+        },
+        [this](size_t c) { mFaces.releaseChunk(c); });
+    *this = Decimator{};
     return m;
 }
 

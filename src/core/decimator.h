@@ -45,7 +45,7 @@ struct MeshPiece {
     ChunkedVector<Vertex> vertices;
     ChunkedVector<std::array<uint32_t, 3>> faces;
     std::vector<std::pair<EdgeKey, uint32_t>> open;  // sorted by key
-    std::vector<Queued> queue;                        // in the queue's array order
+    ChunkedVector<Queued> queue;                      // in the queue's array order
     // Refused pairs: their faces are all there (both ends are final), so a merge changes nothing
     // around them and they stay refused until their faces change, remembering why.
     struct Refused {
@@ -157,6 +157,10 @@ public:
 
     // The surviving mesh, compacted, vertices in creation order.
     Mesh mesh() const;
+    // The same mesh, made while the decimator lets go of its arrays: the queue and the rest first, then
+    // each chunk of vertices and faces once copied, so the run's end holds the decimator or the mesh,
+    // not both. The decimator is left empty.
+    Mesh takeMesh();
 
 private:
     // Adjacency without per-vertex containers: every face corner (3 * face + k) is linked into a list
@@ -280,6 +284,8 @@ private:
     std::vector<Component> componentsByArea() const;
     void dropComponent(const Component& c);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
+    template <typename VerticesRead, typename FacesRead>
+    Mesh collectMesh(VerticesRead verticesRead, FacesRead facesRead) const;
 
     ChunkedVector<VertexGeom> mGeom;
     ChunkedVector<VertexMeta> mMeta;

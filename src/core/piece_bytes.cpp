@@ -92,11 +92,13 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         w.put(id);
     }
     w.put(uint64_t(m.queue.size()));
-    for (const MeshPiece::Queued& c : m.queue) {
+    for (size_t i = 0; i < m.queue.size(); ++i) {
+        const MeshPiece::Queued& c = m.queue[i];
         w.put(c.costBits);
         w.put(c.a);
         w.put(c.b);
         w.put(uint8_t(c.stale));
+        if ((i + 1) % m.queue.kChunk == 0) m.queue.releaseChunk(i / m.queue.kChunk);
     }
     w.put(uint64_t(m.refused.size()));
     for (const auto& r : m.refused) {
@@ -158,8 +160,8 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
         id = r.get<uint32_t>();
         if (id >= vertices) throw std::runtime_error("merge tree piece: an open vertex is missing");
     }
-    m.queue.resize(r.count(13));
-    for (MeshPiece::Queued& c : m.queue) {
+    for (uint64_t i = 0, n = r.count(13); i < n; ++i) {
+        MeshPiece::Queued& c = m.queue.emplace_back();
         c.costBits = r.get<uint32_t>();
         c.a = r.get<uint32_t>();
         c.b = r.get<uint32_t>();

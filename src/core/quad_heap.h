@@ -3,62 +3,90 @@
 // at most one cache miss (with the groups straddling two lines, as in a plain std::vector, it was often
 // two; the sift-down was the decimator's second-hottest function). Half the depth of a binary heap.
 #pragma once
+#include <algorithm>
 #include <cstddef>
+#include <memory>
 #include <new>
 #include <vector>
 
 namespace vdb_isosimp {
 
-// Storage aligned to cache lines.
-template <typename T>
-struct LineAllocator {
-    using value_type = T;
-    static constexpr std::align_val_t kAlign{64};
-    LineAllocator() = default;
-    template <typename U>
-    LineAllocator(const LineAllocator<U>&) {}
-    T* allocate(size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), kAlign)); }
-    void deallocate(T* p, size_t) { ::operator delete(p, kAlign); }
-    template <typename U>
-    bool operator==(const LineAllocator<U>&) const { return true; }
-    template <typename U>
-    bool operator!=(const LineAllocator<U>&) const { return false; }
-};
-
 // T: 16 bytes, with a strict total order `operator<` (the smallest is popped first). Entries may also
 // be appended in bulk without order (append()); the heap is built once, on the next push or pop.
+// Stored in chunks aligned to cache lines, like the decimator's vertex and face arrays: growing never
+// copies, so a merge that appends a child's queue to its sibling's never holds the old and the new
+// array at once. A chunk is 256 KiB, above glibc's mmap threshold, so a freed chunk goes back to the
+// system at once instead of staying in the heap.
 template <typename T>
 class QuadHeap {
     static_assert(sizeof(T) == 16, "four entries must fill one 64-byte line");
-    // Logical entry i sits at mV[i + kPad]; its children 4i+1..4i+4 then start at byte 64(i+1).
+    static constexpr unsigned kShift = 14;
+    static constexpr size_t kChunk = size_t(1) << kShift;  // a multiple of 4: no sibling group straddles two
+    // Logical entry i sits at position i + kPad; its children 4i+1..4i+4 then start at byte 64(i+1).
     static constexpr size_t kPad = 3;
+    static constexpr std::align_val_t kAlign{64};
+    struct Free {
+        void operator()(T* p) const { ::operator delete(p, kAlign); }
+    };
+    using Chunk = std::unique_ptr<T[], Free>;
+    static Chunk newChunk() { return Chunk(static_cast<T*>(::operator new(kChunk * sizeof(T), kAlign))); }
 
 public:
-    QuadHeap() : mV(kPad) {}
+    QuadHeap() = default;
+    QuadHeap(QuadHeap&&) noexcept = default;
+    QuadHeap& operator=(QuadHeap&&) noexcept = default;
+    // A deep copy: a LOD chain's coarser level starts from a copy of its slab's decimator.
+    QuadHeap(const QuadHeap& o) : mEnd(o.mEnd), mUnordered(o.mUnordered)
+    {
+        for (const Chunk& c : o.mChunks) {
+            mChunks.push_back(newChunk());
+            std::copy(c.get(), c.get() + kChunk, mChunks.back().get());
+        }
+    }
+    QuadHeap& operator=(const QuadHeap& o)
+    {
+        QuadHeap copy(o);
+        return *this = std::move(copy);
+    }
 
-    size_t size() const { return mV.size() - kPad; }
+    size_t size() const { return mEnd - kPad; }
     bool empty() const { return size() == 0; }
-    void reserve(size_t n) { mV.reserve(n + kPad); }
-    void shrinkToFit() { mV.shrink_to_fit(); }
+    // Frees the chunks past the entries.
+    void shrinkToFit()
+    {
+        const size_t used = (mEnd + kChunk - 1) >> kShift;
+        if (mChunks.size() > used) mChunks.resize(used);
+    }
     void clear()
     {
-        mV.resize(kPad);
+        mEnd = kPad;
         mUnordered = false;
     }
-    // The entries, in no particular order.
-    const T* begin() const { return mV.data() + kPad; }
-    const T* end() const { return mV.data() + mV.size(); }
+    // Logical entry i (i < size()), in no particular order unless the heap is ordered.
+    const T& entry(size_t i) const { return slot(i + kPad); }
+
+    // Calls f on every entry in array order, freeing the storage as it goes; the heap is left empty.
+    template <typename F>
+    void drain(F f)
+    {
+        for (size_t p = kPad; p < mEnd; ++p) {
+            f(slot(p));
+            if (((p + 1) & (kChunk - 1)) == 0) mChunks[p >> kShift].reset();
+        }
+        mChunks.clear();
+        clear();
+    }
 
     void append(const T& x)
     {
-        mV.push_back(x);
+        pushBack(x);
         mUnordered = true;
     }
 
     void push(const T& x)
     {
         order();
-        mV.push_back(x);
+        pushBack(x);
         size_t i = size() - 1;
         while (i > 0) {
             const size_t parent = (i - 1) / 4;
@@ -74,8 +102,9 @@ public:
     {
         order();
         const T top = at(0);
-        at(0) = mV.back();
-        mV.pop_back();
+        at(0) = slot(--mEnd);
+        // Keeps one spare chunk, so pushes and pops at a chunk boundary do not allocate each time.
+        if (mChunks.size() > ((mEnd + kChunk - 1) >> kShift) + 1) mChunks.pop_back();
         if (!empty()) siftDown(0);
         return top;
     }
@@ -85,15 +114,24 @@ public:
     void eraseIf(Pred remove)
     {
         size_t kept = kPad;
-        for (size_t i = kPad; i < mV.size(); ++i)
-            if (!remove(mV[i])) mV[kept++] = mV[i];
-        mV.resize(kept);
+        for (size_t p = kPad; p < mEnd; ++p)
+            if (!remove(slot(p))) slot(kept++) = slot(p);
+        mEnd = kept;
+        shrinkToFit();
         mUnordered = true;
         order();
     }
 
 private:
-    T& at(size_t i) { return mV[i + kPad]; }
+    T& slot(size_t p) { return mChunks[p >> kShift][p & (kChunk - 1)]; }
+    const T& slot(size_t p) const { return mChunks[p >> kShift][p & (kChunk - 1)]; }
+    T& at(size_t i) { return slot(i + kPad); }
+
+    void pushBack(const T& x)
+    {
+        if ((mEnd >> kShift) == mChunks.size()) mChunks.push_back(newChunk());
+        slot(mEnd++) = x;
+    }
 
     void order()
     {
@@ -121,7 +159,8 @@ private:
         at(i) = x;
     }
 
-    std::vector<T, LineAllocator<T>> mV;
+    std::vector<Chunk> mChunks;
+    size_t mEnd = kPad;
     bool mUnordered = false;
 };
 

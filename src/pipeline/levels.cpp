@@ -57,9 +57,9 @@ Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSa
         LevelReport level;
         level.ratio = o.lods[i];
         level.facesTarget = levelTarget(o, rep, i);
-        mesh = whole.decimator().mesh();
-        mesh.attributes = attributes.sample(mesh.points);
         rep.maxErrorAccepted = std::max({rep.maxErrorAccepted, whole.stats().maxErrorAccepted, whole.decimator().maxErrorAccepted()});
+        mesh = whole.decimator().takeMesh();
+        mesh.attributes = attributes.sample(mesh.points);
         level.facesOut = mesh.triangles.size();
         level.vertsOut = mesh.points.size();
         level.maxErrorAccepted = rep.maxErrorAccepted;

@@ -627,7 +627,7 @@ Result PipelineRun::finalPass()
     rep.maxErrorAccepted = std::max(all.maxErrorAccepted, whole.decimator().maxErrorAccepted());
     mAttributes->load();
     if (mOpt.lods.empty()) {
-        mResult.mesh = whole.decimator().mesh();
+        mResult.mesh = whole.decimator().takeMesh();
         mResult.mesh.attributes = mAttributes->sample(mResult.mesh.points);
     } else {
         // Each level is made from the one before, handed over and let go; the last one is the result.
@@ -637,7 +637,7 @@ Result PipelineRun::finalPass()
     const Integrator& last = *mRoot.back();
     rep.componentsDropped = last.componentsDropped();
     rep.componentsPruned = last.componentsPruned();
-    if (last.faceCount() == 0) {  // every component was below the minimum area
+    if (mResult.mesh.triangles.empty()) {  // every component was below the minimum area
         std::ostringstream s;
         s << mPath << ": every component of the surface in grid '" << mInfo.gridName << "' has an area below "
           << mOpt.minComponentArea;
