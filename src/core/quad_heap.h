@@ -145,18 +145,22 @@ private:
     {
         const T x = at(i);
         const size_t n = size();
+        T* hole = &at(i);
         for (;;) {
             const size_t first = 4 * i + 1;
             if (first >= n) break;
-            size_t best = first;
-            const size_t last = first + 4 < n ? first + 4 : n;
-            for (size_t k = first + 1; k < last; ++k)
-                if (at(k) < at(best)) best = k;
-            if (!(at(best) < x)) break;
-            at(i) = at(best);
-            i = best;
+            // The four siblings share one line, hence one chunk: one lookup per level.
+            T* group = &at(first);
+            const size_t count = n - first < 4 ? n - first : 4;
+            size_t best = 0;
+            for (size_t k = 1; k < count; ++k)
+                if (group[k] < group[best]) best = k;
+            if (!(group[best] < x)) break;
+            *hole = group[best];
+            hole = group + best;
+            i = first + best;
         }
-        at(i) = x;
+        *hole = x;
     }
 
     std::vector<Chunk> mChunks;
