@@ -49,6 +49,39 @@ TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
     EXPECT_TRUE(reference.empty());
 }
 
+TEST(QuadHeap, GrowsAndShrinksAcrossChunks)
+{
+    // Entries live in chunks of 16384: push and pop well past several chunk boundaries, up and down
+    // twice, and drain what is left in array order.
+    std::mt19937_64 rng(11);
+    QuadHeap<Entry> heap;
+    std::vector<Entry> reference;
+    uint32_t id = 0;
+    for (int cycle = 0; cycle < 2; ++cycle) {
+        for (int i = 0; i < 70000; ++i) {
+            const Entry e{rng() % 100000, id++, 0};
+            heap.push(e);
+            reference.push_back(e);
+        }
+        std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
+        for (int i = 0; i < 60000; ++i) {
+            const Entry got = heap.pop();
+            ASSERT_EQ(got.id, reference.back().id) << "cycle " << cycle << " pop " << i;
+            reference.pop_back();
+        }
+        ASSERT_EQ(heap.size(), reference.size());
+    }
+    std::vector<uint32_t> drained, expected;
+    for (size_t i = 0; i < heap.size(); ++i) expected.push_back(heap.entry(i).id);
+    heap.drain([&](const Entry& e) { drained.push_back(e.id); });
+    EXPECT_EQ(drained, expected);
+    EXPECT_TRUE(heap.empty());
+    heap.push({5, 1, 0});  // usable again after a drain
+    heap.push({3, 2, 0});
+    EXPECT_EQ(heap.pop().id, 2u);
+    EXPECT_EQ(heap.size(), 1u);
+}
+
 TEST(QuadHeap, SiblingGroupsStartOnCacheLines)
 {
     QuadHeap<Entry> heap;
