@@ -38,9 +38,10 @@ public:
     // A deep copy: a LOD chain's coarser level starts from a copy of its slab's decimator.
     QuadHeap(const QuadHeap& o) : mEnd(o.mEnd), mUnordered(o.mUnordered)
     {
-        for (const Chunk& c : o.mChunks) {
+        for (size_t c = 0; c < o.mChunks.size(); ++c) {
             mChunks.push_back(newChunk());
-            std::copy(c.get(), c.get() + kChunk, mChunks.back().get());
+            const size_t used = c * kChunk < mEnd ? std::min(kChunk, mEnd - c * kChunk) : 0;  // entries written there
+            std::copy(o.mChunks[c].get(), o.mChunks[c].get() + used, mChunks.back().get());
         }
     }
     QuadHeap& operator=(const QuadHeap& o)
