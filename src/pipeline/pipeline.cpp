@@ -84,26 +84,38 @@ tbb::filter<void, size_t> indices(size_t& next, size_t end)
 
 // Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
 // on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
-// (blocks in order, as in extraction), so counting does not load the whole volume at once.
+// (blocks in order, as in extraction), so counting does not load the whole volume at once. The blocks
+// go to the threads in runs of consecutive ones: a block alone is too little work to hand on, and two
+// threads on consecutive blocks keep meeting on the load lock of the leaf they share.
 uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls)
 {
+    constexpr size_t kRun = 64;
+    const auto runBlocks = [&](size_t run) {
+        const size_t first = begin + run * kRun;
+        return std::make_pair(first, std::min(end, first + kRun));
+    };
+    const auto count = [&](size_t run) {
+        const auto [first, last] = runBlocks(run);
+        uint64_t faces = 0;
+        BlockSamples s;
+        for (size_t i = first; i < last; ++i) {
+            vol.sample(blocks[i], s);
+            faces += countBlockTriangles(s, cls);
+        }
+        return std::make_pair(run, faces);
+    };
     uint64_t total = 0;
-    size_t next = begin;
-    tbb::parallel_pipeline(
-        4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
-        indices(next, end) &
-            tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel,
-                                                                  [&](size_t i) {
-                                                                      BlockSamples s;
-                                                                      vol.sample(blocks[i], s);
-                                                                      return std::make_pair(i, countBlockTriangles(s, cls));
-                                                                  }) &
-            tbb::make_filter<std::pair<size_t, uint64_t>, void>(tbb::filter_mode::serial_in_order,
-                                                                [&](std::pair<size_t, uint64_t> r) {
-                                                                    total += r.second;
-                                                                    vol.releaseLeaf(blocks[r.first]);
-                                                                    if (r.first % Volume::kTrimEveryBlocks == 0) vol.trimInputMapping();
-                                                                }));
+    const auto add = [&](std::pair<size_t, uint64_t> counted) {
+        total += counted.second;
+        const auto [first, last] = runBlocks(counted.first);
+        for (size_t i = first; i < last; ++i) vol.releaseLeaf(blocks[i]);
+        vol.trimInputMapping();
+    };
+    size_t next = 0;
+    tbb::parallel_pipeline(4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
+                           indices(next, (end - begin + kRun - 1) / kRun) &
+                               tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel, count) &
+                               tbb::make_filter<std::pair<size_t, uint64_t>, void>(tbb::filter_mode::serial_in_order, add));
     return total;
 }
 
