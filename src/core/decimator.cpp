@@ -365,16 +365,28 @@ void Decimator::addBlock(const BlockMesh& block)
 
 MeshPiece Decimator::takePiece()
 {
-    dropDeadEntries();
     MeshPiece piece;
     // First what needs the vertices' state besides the vertices themselves: the queued edges (with
-    // whether each is stale) and the refused pairs whose ends live.
+    // whether each is stale) and the refused pairs whose ends live. The queue names vertices in no
+    // order (about four entries a vertex): its entries read their ends' new numbers and versions from
+    // one array of 8 bytes a vertex, not from the vertex records and the number map at random.
+    struct Renumbered {
+        uint32_t dense, version;  // dense: kNone for a vertex that is dead or not final
+    };
     std::vector<uint32_t> dense(mMeta.size(), UINT32_MAX);
+    std::vector<Renumbered> queueable(mMeta.size(), {kNone, 0});
     for (uint32_t v = 0, n = 0; v < mMeta.size(); ++v)
-        if (mMeta[v].alive) dense[v] = n++;
+        if (mMeta[v].alive) {
+            dense[v] = n++;
+            if (mMeta[v].final) queueable[v] = {dense[v], mMeta[v].version};
+        }
+    // Entries of a pair that is no longer two live final vertices are dropped, as dropDeadEntries does.
     mHeap.drain([&](const Candidate& c) {
-        if (mMeta[c.a()].alive && mMeta[c.b].alive) piece.queue.emplace_back() = {c.costBits(), dense[c.a()], dense[c.b], !current(c)};
+        const Renumbered a = queueable[c.a()], b = queueable[c.b];
+        if (a.dense != kNone && b.dense != kNone)
+            piece.queue.emplace_back() = {c.costBits(), a.dense, b.dense, a.version + b.version != c.stamp};
     });
+    queueable = {};
     for (const Refused& r : mRefused)
         if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
     mRefused = {};
@@ -439,12 +451,16 @@ void Decimator::absorb(MeshPiece&& piece)
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
+    // Each piece vertex's number here and its version, side by side for the queue's random reads.
+    std::vector<std::pair<uint32_t, uint32_t>> renumbered(n);
+    for (uint32_t v = 0; v < n; ++v) renumbered[v] = {remap[v], mMeta[remap[v]].version};
     const bool pushEach = mHeap.size() > piece.queue.size();
     for (size_t i = 0; i < piece.queue.size(); ++i) {
         const MeshPiece::Queued& c = piece.queue[i];
-        const uint32_t a = remap[c.a], b = remap[c.b];
+        const auto [a, va] = renumbered[c.a];
+        const auto [b, vb] = renumbered[c.b];
         // An entry that was stale stays stale (re-evaluated when popped).
-        const uint32_t stamp = mMeta[a].version + mMeta[b].version - (c.stale ? 1u : 0u);
+        const uint32_t stamp = va + vb - (c.stale ? 1u : 0u);
         // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
         // smaller one they are appended and the whole is ordered once when next used.
         const Candidate e = Candidate::make(c.costBits, std::min(a, b), std::max(a, b), stamp);
@@ -452,6 +468,7 @@ void Decimator::absorb(MeshPiece&& piece)
         else mHeap.append(e);
         if ((i + 1) % kQueueChunk == 0) piece.queue.releaseChunk(i / kQueueChunk);
     }
+    renumbered = {};
     piece.queue = {};
     // Refused pairs come along as unchanged: both ends are final, so every face around them is
     // already in the piece and the merge adds none (it welds open vertices only). Retrying them at
