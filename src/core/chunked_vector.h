@@ -48,9 +48,13 @@ public:
         return x;
     }
 
-    // Frees the storage of chunk `c` (elements [c * kChunk, (c + 1) * kChunk)), for an array that is
-    // read once front to back before it is discarded: the elements there must not be accessed again.
-    void releaseChunk(size_t c) { mChunks[c].reset(); }
+    // For an array read once front to back before it is discarded: element i, the last read so far,
+    // is done with; its chunk is freed once i is the chunk's last element (nothing before i in that
+    // chunk may be accessed again).
+    void releaseThrough(size_t i)
+    {
+        if (((i + 1) & (kChunk - 1)) == 0) mChunks[i >> Shift].reset();
+    }
 
     template <typename Ref, typename Owner>
     struct Iter {

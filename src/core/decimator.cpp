@@ -395,23 +395,19 @@ MeshPiece Decimator::takePiece()
     for (const auto& [key, id] : mOpen) piece.open.emplace_back(key, dense[id]);
     std::sort(piece.open.begin(), piece.open.end());
     mOpen = {};
-    constexpr size_t kVertChunk = decltype(mMeta)::kChunk, kFaceChunk = decltype(mFaces)::kChunk;
-    static_assert(kVertChunk == decltype(mGeom)::kChunk, "vertex arrays are freed chunk by chunk together");
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
         if (mMeta[v].alive) {
             piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final};
             if (v < mDrift.size()) piece.drift.emplace_back() = mDrift[v];
             if (v < mAttrQ.size()) piece.attributes.emplace_back() = mAttrQ[v];
         }
-        if ((v + 1) % kVertChunk == 0) {
-            mGeom.releaseChunk(v / kVertChunk);
-            mMeta.releaseChunk(v / kVertChunk);
-        }
+        mGeom.releaseThrough(v);
+        mMeta.releaseThrough(v);
     }
     for (size_t i = 0; i < mFaces.size(); ++i) {
         const Face& f = mFaces[i];
         if (f.alive) piece.faces.emplace_back() = {dense[f.v[0]], dense[f.v[1]], dense[f.v[2]]};
-        if ((i + 1) % kFaceChunk == 0) mFaces.releaseChunk(i / kFaceChunk);
+        mFaces.releaseThrough(i);
     }
     *this = Decimator{};
     return piece;
@@ -437,8 +433,6 @@ void Decimator::absorb(MeshPiece&& piece)
         }
     }
     piece.open = {};
-    constexpr size_t kVertChunk = decltype(piece.vertices)::kChunk, kFaceChunk = decltype(piece.faces)::kChunk,
-                     kQueueChunk = decltype(piece.queue)::kChunk;
     for (uint32_t v = 0; v < n; ++v) {
         if (remap[v] == UINT32_MAX) {
             const MeshPiece::Vertex& theirs = piece.vertices[v];
@@ -447,7 +441,7 @@ void Decimator::absorb(MeshPiece&& piece)
             copyExtras(remap[v], piece, v);
             mMeta[remap[v]].final = theirs.final;
         }
-        if ((v + 1) % kVertChunk == 0) piece.vertices.releaseChunk(v / kVertChunk);
+        piece.vertices.releaseThrough(v);
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
@@ -466,7 +460,7 @@ void Decimator::absorb(MeshPiece&& piece)
         const Candidate e = Candidate::make(c.costBits, std::min(a, b), std::max(a, b), stamp);
         if (pushEach) mHeap.push(e);
         else mHeap.append(e);
-        if ((i + 1) % kQueueChunk == 0) piece.queue.releaseChunk(i / kQueueChunk);
+        piece.queue.releaseThrough(i);
     }
     renumbered = {};
     piece.queue = {};
@@ -481,7 +475,7 @@ void Decimator::absorb(MeshPiece&& piece)
     for (size_t i = 0; i < piece.faces.size(); ++i) {
         const auto& f = piece.faces[i];
         newFace({remap[f[0]], remap[f[1]], remap[f[2]]});
-        if ((i + 1) % kFaceChunk == 0) piece.faces.releaseChunk(i / kFaceChunk);
+        piece.faces.releaseThrough(i);
     }
     piece = MeshPiece{};
 }
@@ -1015,7 +1009,7 @@ void Decimator::requeueAll()
     }
 }
 
-// verticesRead(c) / facesRead(c): chunk c of the vertex / face arrays has been read and is not read again.
+// verticesRead(v) / facesRead(i): vertex v / face i, and every one before it, has been read for the last time.
 template <typename VerticesRead, typename FacesRead>
 Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) const
 {
@@ -1024,18 +1018,17 @@ Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) cons
     m.triangles.reserve(mFaceCount);
     std::vector<uint32_t> remap(mMeta.size(), UINT32_MAX);
     // Vertices and faces in slot order: deterministic for a deterministic input sequence.
-    constexpr size_t kVertChunk = decltype(mMeta)::kChunk, kFaceChunk = decltype(mFaces)::kChunk;
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
         if (mMeta[v].alive) {
             remap[v] = uint32_t(m.points.size());
             m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
         }
-        if ((v + 1) % kVertChunk == 0) verticesRead(v / kVertChunk);
+        verticesRead(v);
     }
     for (size_t i = 0; i < mFaces.size(); ++i) {
         const Face& f = mFaces[i];
         if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
-        if ((i + 1) % kFaceChunk == 0) facesRead(i / kFaceChunk);
+        facesRead(i);
     }
     return m;
 }
@@ -1055,11 +1048,11 @@ Mesh Decimator::takeMesh()
     mDrift = {};
     mAttrQ = {};
     Mesh m = collectMesh(
-        [this](size_t c) {
-            mGeom.releaseChunk(c);
-            mMeta.releaseChunk(c);
+        [this](size_t v) {
+            mGeom.releaseThrough(v);
+            mMeta.releaseThrough(v);
         },
-        [this](size_t c) { mFaces.releaseChunk(c); });
+        [this](size_t i) { mFaces.releaseThrough(i); });
     *this = Decimator{};
     return m;
 }

@@ -79,12 +79,12 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         for (double x : v.p) w.put(x);
         for (double x : v.q.q) w.put(x);
         w.put(uint8_t(v.final));
-        if ((i + 1) % m.vertices.kChunk == 0) m.vertices.releaseChunk(i / m.vertices.kChunk);
+        m.vertices.releaseThrough(i);
     }
     w.put(uint64_t(m.faces.size()));
     for (size_t i = 0; i < m.faces.size(); ++i) {
         for (uint32_t x : m.faces[i]) w.put(x);
-        if ((i + 1) % m.faces.kChunk == 0) m.faces.releaseChunk(i / m.faces.kChunk);
+        m.faces.releaseThrough(i);
     }
     w.put(uint64_t(m.open.size()));
     for (const auto& [key, id] : m.open) {
@@ -98,7 +98,7 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         w.put(c.a);
         w.put(c.b);
         w.put(uint8_t(c.stale));
-        if ((i + 1) % m.queue.kChunk == 0) m.queue.releaseChunk(i / m.queue.kChunk);
+        m.queue.releaseThrough(i);
     }
     w.put(uint64_t(m.refused.size()));
     for (const auto& r : m.refused) {
