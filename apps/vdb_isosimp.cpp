@@ -40,23 +40,32 @@ class TerminalProgress final : public Progress {
 public:
     bool update(double fraction, uint64_t facesKept) override
     {
-        // Called per block batch and, during decimation passes, every few thousand collapses: redraw
-        // at most five times a second. After the last block the final pass runs ("finishing").
-        const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
-        if (t - mLast < 0.2) return true;
-        mLast = t;
-        const int width = 30, filled = int(fraction * width);
-        std::string bar(size_t(filled), '#');
-        bar.resize(width, '.');
-        const double eta = fraction > 0.01 ? t * (1.0 - fraction) / fraction : 0.0;
+        // Called per block batch and, during decimation passes, every few thousand collapses. After
+        // the last block the final pass runs ("finishing").
+        const double t = elapsed();
+        if (!due(t)) return true;
+        // The time left comes from extraction's pace alone (a face target counts the blocks first).
+        const double spent = t - mExtractStart;
+        const double eta = fraction > 0.01 ? spent * (1.0 - fraction) / fraction : 0.0;
+        char text[96];
         if (fraction < 1.0)
-            std::fprintf(stderr, "\r[%s] %5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", bar.c_str(), 100.0 * fraction,
-                         (unsigned long long)facesKept, t, eta);
+            std::snprintf(text, sizeof text, "%5.1f%%  %llu faces kept  %.0fs, ~%.0fs left ", 100.0 * fraction,
+                          (unsigned long long)facesKept, t, eta);
         else
-            std::fprintf(stderr, "\r[%s] finishing: %llu faces kept  %.0fs          ", bar.c_str(),
-                         (unsigned long long)facesKept, t);
-        mShown = true;
-        std::fflush(stderr);
+            std::snprintf(text, sizeof text, "finishing: %llu faces kept  %.0fs          ", (unsigned long long)facesKept, t);
+        draw(fraction, text);
+        return true;
+    }
+
+    // A face target first counts the full-resolution faces, block by block.
+    bool counting(double fraction) override
+    {
+        const double t = elapsed();
+        mExtractStart = t;
+        if (!due(t)) return true;
+        char text[96];
+        std::snprintf(text, sizeof text, "%5.1f%%  counting faces for the target  %.0fs ", 100.0 * fraction, t);
+        draw(fraction, text);
         return true;
     }
 
@@ -68,8 +77,26 @@ public:
     }
 
 private:
+    double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count(); }
+    // Redraws at most five times a second.
+    bool due(double t)
+    {
+        if (t - mLast < 0.2) return false;
+        mLast = t;
+        return true;
+    }
+    void draw(double fraction, const char* text)
+    {
+        const int width = 30, filled = int(fraction * width);
+        std::string bar(size_t(filled), '#');
+        bar.resize(width, '.');
+        std::fprintf(stderr, "\r[%s] %s", bar.c_str(), text);
+        mShown = true;
+        std::fflush(stderr);
+    }
+
     std::chrono::steady_clock::time_point mStart = std::chrono::steady_clock::now();
-    double mLast = -1.0;
+    double mLast = -1.0, mExtractStart = 0.0;
     bool mShown = false;
 };
 
@@ -139,6 +166,11 @@ public:
     {
         if (gSignal.load()) return false;
         return mBar ? mBar->update(fraction, facesKept) : true;
+    }
+    bool counting(double fraction) override
+    {
+        if (gSignal.load()) return false;
+        return mBar ? mBar->counting(fraction) : true;
     }
 
 private:

@@ -260,6 +260,61 @@ TEST(Pipeline, AbsoluteFaceTarget)
     }
 }
 
+// A face target counts the blocks before extracting any: the count reports its own progress, in
+// order and up to 1, before the first block's, and a cancel there stops the run.
+TEST(Pipeline, FaceCountReportsProgressAndCancels)
+{
+    struct Record : Progress {
+        std::vector<double> counted;
+        size_t updates = 0, updatesBeforeCountEnded = 0;
+        bool stopCounting = false;
+        bool update(double, uint64_t) override
+        {
+            ++updates;
+            if (counted.empty() || counted.back() < 1.0) ++updatesBeforeCountEnded;
+            return true;
+        }
+        bool counting(double fraction) override
+        {
+            counted.push_back(fraction);
+            return !stopCounting;
+        }
+    };
+    Options target;
+    target.targetFaces = 5000;
+    Record rec;
+    simplifyFile(noiseFile(), target, &rec);
+    ASSERT_FALSE(rec.counted.empty());
+    EXPECT_TRUE(std::is_sorted(rec.counted.begin(), rec.counted.end()));
+    EXPECT_GT(rec.counted.front(), 0.0);
+    EXPECT_EQ(rec.counted.back(), 1.0);
+    EXPECT_EQ(rec.updatesBeforeCountEnded, 0u);
+    EXPECT_GT(rec.updates, 0u);
+
+    Record ratio;
+    simplifyFile(noiseFile(), ratioOptions(0.2, 0), &ratio);
+    EXPECT_TRUE(ratio.counted.empty());
+
+    Record stop;
+    stop.stopCounting = true;
+    EXPECT_THROW(simplifyFile(noiseFile(), target, &stop), Cancelled);
+    EXPECT_EQ(stop.counted.size(), 1u);
+    EXPECT_EQ(stop.updates, 0u);
+
+    // A progress that knows nothing of the count hears (0, 0) during it, and can cancel there.
+    struct UpdateOnly : Progress {
+        std::vector<double> fractions;
+        bool update(double fraction, uint64_t) override
+        {
+            fractions.push_back(fraction);
+            return false;
+        }
+    } only;
+    EXPECT_THROW(simplifyFile(noiseFile(), target, &only), Cancelled);
+    ASSERT_EQ(only.fractions.size(), 1u);
+    EXPECT_EQ(only.fractions.front(), 0.0);
+}
+
 TEST(Pipeline, SameOutputForAnyThreadCount)
 {
     // Many small slabs and batches: slabs and joins run in parallel and every one decimates.

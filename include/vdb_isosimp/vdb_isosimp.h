@@ -183,6 +183,10 @@ public:
     virtual ~Progress() = default;
     // fraction of blocks done in [0,1], faces currently kept. Return false to cancel (throws Cancelled).
     virtual bool update(double fraction, uint64_t facesKept) = 0;
+    // With a face target (Options::targetFaces) the blocks are counted before any is extracted:
+    // fraction of them counted in [0,1]. Return false to cancel (throws Cancelled). By default
+    // update(0, 0): nothing extracted yet, and a cancel is honoured during the count too.
+    virtual bool counting(double /*fraction*/) { return update(0.0, 0); }
 };
 
 struct Result {

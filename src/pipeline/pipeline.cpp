@@ -86,10 +86,13 @@ tbb::filter<void, size_t> indices(size_t& next, size_t end)
 // on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
 // (blocks in order, as in extraction), so counting does not load the whole volume at once. The blocks
 // go to the threads in runs of consecutive ones: a block alone is too little work to hand on, and two
-// threads on consecutive blocks keep meeting on the load lock of the leaf they share.
-uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls)
+// threads on consecutive blocks keep meeting on the load lock of the leaf they share. `counted` hears
+// the fraction of blocks counted, in order; false from it cancels.
+uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls,
+                    const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = 64;
+    const size_t runs = (end - begin + kRun - 1) / kRun;
     const auto runBlocks = [&](size_t run) {
         const size_t first = begin + run * kRun;
         return std::make_pair(first, std::min(end, first + kRun));
@@ -105,15 +108,18 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
         return std::make_pair(run, faces);
     };
     uint64_t total = 0;
-    const auto add = [&](std::pair<size_t, uint64_t> counted) {
-        total += counted.second;
-        const auto [first, last] = runBlocks(counted.first);
+    const auto add = [&](std::pair<size_t, uint64_t> run) {
+        total += run.second;
+        const auto [first, last] = runBlocks(run.first);
         for (size_t i = first; i < last; ++i) vol.releaseLeaf(blocks[i]);
         vol.trimInputMapping();
+        // As often as extraction reports (every 256 blocks).
+        if ((run.first % 4 == 3 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))
+            throw Cancelled("cancelled");
     };
     size_t next = 0;
     tbb::parallel_pipeline(4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
-                           indices(next, (end - begin + kRun - 1) / kRun) &
+                           indices(next, runs) &
                                tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel, count) &
                                tbb::make_filter<std::pair<size_t, uint64_t>, void>(tbb::filter_mode::serial_in_order, add));
     return total;
@@ -260,7 +266,9 @@ void PipelineRun::countFacesForTarget(const VolumeOpener& open)
     // Counted on the volume itself, which frees leaves as it goes, then opened again for extraction:
     // one copy of the topology at a time (a second copy made the start of a run its peak on large
     // inputs kept to small outputs).
-    mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls);
+    mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls, [this](double fraction) {
+        return !mProgress || mProgress->counting(fraction);
+    });
     mVol.reset();
     malloc_trim(0);
     mVol = open();
