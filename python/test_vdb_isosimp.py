@@ -228,6 +228,14 @@ class Behaviour(unittest.TestCase):
         self.assertTrue(all(a[0] <= b[0] for a, b in zip(seen, seen[1:])))
         with self.assertRaises(vdb_isosimp.Cancelled):
             vdb_isosimp.simplify(vdb, progress=lambda fr, kept: False)
+        # With a face target the blocks are counted first: the callback hears (0.0, 0) there, and
+        # can cancel there.
+        counted = []
+        vdb_isosimp.simplify(vdb, faces=2000, progress=lambda fr, kept: counted.append((fr, kept)))
+        self.assertEqual(counted[0], (0.0, 0))
+        self.assertEqual(counted[-1][0], 1.0)
+        with self.assertRaises(vdb_isosimp.Cancelled):
+            vdb_isosimp.simplify(vdb, faces=2000, progress=lambda fr, kept: False)
 
         def boom(fr, kept):
             raise KeyError("from the callback")
