@@ -752,6 +752,13 @@ size_t Decimator::decimateTo(size_t targetFaces)
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = mHeap.pop();
         const uint32_t a = c.a(), b = c.b;
+        // The next top is most often the next entry popped: its ends' records, read first to tell a
+        // live entry from a stale or dead one, load while this one is dealt with.
+        if (!mHeap.empty()) {
+            const Candidate& next = mHeap.top();
+            __builtin_prefetch(&mMeta[next.a()]);
+            __builtin_prefetch(&mMeta[next.b]);
+        }
         if (!current(c)) {
             // An end changed since the entry was queued: requeue at today's cost (it comes straight
             // back if it is still the cheapest). No ring walk to check the pair is still an edge: an

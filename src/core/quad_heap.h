@@ -98,6 +98,13 @@ public:
         at(i) = x;
     }
 
+    // The smallest entry. Not empty.
+    const T& top()
+    {
+        order();
+        return at(0);
+    }
+
     // Removes and returns the smallest entry. Not empty.
     T pop()
     {
