@@ -24,7 +24,10 @@ TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
     std::vector<Entry> reference;  // kept sorted descending: the smallest at the back
     auto popBoth = [&] {
         std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
+        // top() is what the next pop returns, also right after unordered appends.
+        const Entry top = heap.top();
         const Entry got = heap.pop();
+        ASSERT_EQ(top.id, got.id);
         ASSERT_EQ(got.key, reference.back().key);
         ASSERT_EQ(got.id, reference.back().id);
         reference.pop_back();
