@@ -82,6 +82,9 @@ tbb::filter<void, size_t> indices(size_t& next, size_t end)
     });
 }
 
+// Progress is reported once per this many blocks, extracted or counted.
+constexpr size_t kProgressEveryBlocks = 256;
+
 // Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
 // on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
 // (blocks in order, as in extraction), so counting does not load the whole volume at once. The blocks
@@ -113,8 +116,8 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
         const auto [first, last] = runBlocks(run.first);
         for (size_t i = first; i < last; ++i) vol.releaseLeaf(blocks[i]);
         vol.trimInputMapping();
-        // As often as extraction reports (every 256 blocks).
-        if ((run.first % 4 == 3 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))
+        constexpr size_t kReportEveryRuns = kProgressEveryBlocks / kRun;
+        if (((run.first + 1) % kReportEveryRuns == 0 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))
             throw Cancelled("cancelled");
     };
     size_t next = 0;
@@ -162,7 +165,6 @@ private:
     EmptySurfaceError noSurface() const;
 
     static constexpr size_t kMallocTrimEveryBlocks = 4096;
-    static constexpr size_t kProgressEveryBlocks = 256;
 
     const std::string& mPath;
     const Options& mOpt;
