@@ -116,6 +116,7 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
         const auto [first, last] = runBlocks(run.first);
         for (size_t i = first; i < last; ++i) vol.releaseLeaf(blocks[i]);
         vol.trimInputMapping();
+        static_assert(kProgressEveryBlocks % kRun == 0, "the count reports after whole runs");
         constexpr size_t kReportEveryRuns = kProgressEveryBlocks / kRun;
         if (((run.first + 1) % kReportEveryRuns == 0 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))
             throw Cancelled("cancelled");
