@@ -48,6 +48,14 @@ public:
         return x;
     }
 
+    // Keeps the first n elements (n <= size()) and frees the chunks past them.
+    void truncate(size_t n)
+    {
+        mSize = n;
+        mChunks.resize((n + kChunk - 1) >> Shift);
+    }
+    void clear() { truncate(0); }
+
     // For an array read once front to back before it is discarded: element i, the last read so far,
     // is done with; its chunk is freed once i is the chunk's last element (nothing before i in that
     // chunk may be accessed again).

@@ -104,9 +104,7 @@ uint32_t Decimator::newFace(const std::array<uint32_t, 3>& v)
     }
     Face& f = mFaces[id];
     f.v = v;
-    f.alive = true;
-    f.nonFinal = uint8_t(!mMeta[v[0]].final + !mMeta[v[1]].final + !mMeta[v[2]].final);
-    if (f.nonFinal) ++mUncontractibleFaces;
+    if (anyOpen(f)) ++mUncontractibleFaces;
     for (int k = 0; k < 3; ++k) {
         f.next[k] = mMeta[v[k]].head;
         mMeta[v[k]].head = 3 * id + uint32_t(k);
@@ -125,8 +123,8 @@ void Decimator::killFace(uint32_t id)
         while (*link != corner) link = &mFaces[*link / 3].next[*link % 3];
         *link = f.next[k];
     }
-    if (f.nonFinal) --mUncontractibleFaces;
-    f.alive = false;
+    if (anyOpen(f)) --mUncontractibleFaces;
+    f.v[0] = kNone;
     mFreeFaces.push_back(id);
     --mFaceCount;
 }
@@ -272,7 +270,7 @@ void Decimator::finalize(uint32_t v)
     vx.final = true;
     ++mFinalizations;
     for (uint32_t c = vx.head; c != kNone; c = mFaces[c / 3].next[c % 3])
-        if (--mFaces[c / 3].nonFinal == 0) --mUncontractibleFaces;
+        if (!anyOpen(mFaces[c / 3])) --mUncontractibleFaces;  // v was its last open corner
     neighbours(v, mScratchA);
     for (uint32_t n : mScratchA)
         if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
@@ -387,8 +385,12 @@ MeshPiece Decimator::takePiece()
             piece.queue.emplace_back() = {c.costBits(), a.dense, b.dense, a.version + b.version != c.stamp};
     });
     queueable = {};
+    const auto live = [&](const Refused& r) { return mMeta[r.a].alive && mMeta[r.b].alive; };
+    size_t refused = 0;
+    for (const Refused& r : mRefused) refused += live(r);
+    piece.refused.reserve(refused);  // exactly: a doubling vector held up to twice the pairs
     for (const Refused& r : mRefused)
-        if (mMeta[r.a].alive && mMeta[r.b].alive) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
+        if (live(r)) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
     mRefused = {};
     // Open vertices in key order (hash-map order is not part of the output contract).
     piece.open.reserve(mOpen.size());
@@ -397,7 +399,7 @@ MeshPiece Decimator::takePiece()
     mOpen = {};
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
         if (mMeta[v].alive) {
-            piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final};
+            piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final != 0};
             if (v < mDrift.size()) piece.drift.emplace_back() = mDrift[v];
             if (v < mAttrQ.size()) piece.attributes.emplace_back() = mAttrQ[v];
         }
@@ -406,7 +408,7 @@ MeshPiece Decimator::takePiece()
     }
     for (size_t i = 0; i < mFaces.size(); ++i) {
         const Face& f = mFaces[i];
-        if (f.alive) piece.faces.emplace_back() = {dense[f.v[0]], dense[f.v[1]], dense[f.v[2]]};
+        if (f.alive()) piece.faces.emplace_back() = {dense[f.v[0]], dense[f.v[1]], dense[f.v[2]]};
         mFaces.releaseThrough(i);
     }
     *this = Decimator{};
@@ -469,7 +471,7 @@ void Decimator::absorb(MeshPiece&& piece)
     // every node of the merge tree tried each closed tetrahedron of a noisy surface once per level.
     for (const auto& r : piece.refused) {
         const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
-        mRefused.push_back(refusal(a, b, r.folds));
+        mRefused.emplace_back() = refusal(a, b, r.folds);
     }
     piece.refused = {};
     for (size_t i = 0; i < piece.faces.size(); ++i) {
@@ -773,7 +775,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         // The queued cost bounds every placement's from below (of the geometry; an attribute's part
         // would not): past the error bound already, the pair waits without the topology checks.
         if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
-            mRefused.push_back(refusal(a, b, false));
+            mRefused.emplace_back() = refusal(a, b, false);
             continue;
         }
         double cost;
@@ -783,7 +785,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         case Outcome::Refused:
         case Outcome::Folds:
         case Outcome::TooFar:
-            mRefused.push_back(refusal(a, b, outcome == Outcome::Folds));
+            mRefused.emplace_back() = refusal(a, b, outcome == Outcome::Folds);
             break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }
@@ -895,7 +897,7 @@ size_t Decimator::removeDegenerateFaces()
         flat.assign(mFaces.size(), 0);
         tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096),
                           [&](const tbb::blocked_range<uint32_t>& r) {
-                              for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive && degenerate(f);
+                              for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive() && degenerate(f);
                           });
         candidates.clear();
         for (uint32_t f = 0; f < flat.size(); ++f)
@@ -905,7 +907,7 @@ size_t Decimator::removeDegenerateFaces()
             progress = false;
             remaining = 0;
             for (uint32_t f : candidates) {
-                if (!mFaces[f].alive || !degenerate(f)) continue;
+                if (!mFaces[f].alive() || !degenerate(f)) continue;
                 if (collapseCheapestEdge(f, false) || dropFlatComponent(f) || collapseCheapestEdge(f, true) || openPinch(f))
                     progress = rescan = true;
                 else
@@ -929,14 +931,14 @@ std::vector<Decimator::Component> Decimator::componentsByArea() const
         return v;
     };
     for (const Face& f : mFaces)
-        if (f.alive) {
+        if (f.alive()) {
             parent[find(f.v[1])] = find(f.v[0]);
             parent[find(f.v[2])] = find(f.v[0]);
         }
     std::vector<Component> comps;
     std::vector<int64_t> index(mMeta.size(), -1);
     for (uint32_t f = 0; f < mFaces.size(); ++f) {
-        if (!mFaces[f].alive) continue;
+        if (!mFaces[f].alive()) continue;
         const uint32_t root = find(mFaces[f].v[0]);
         if (index[root] < 0) {
             index[root] = int64_t(comps.size());
@@ -1034,7 +1036,7 @@ Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) cons
     }
     for (size_t i = 0; i < mFaces.size(); ++i) {
         const Face& f = mFaces[i];
-        if (f.alive) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
+        if (f.alive()) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
         facesRead(i);
     }
     return m;
