@@ -182,6 +182,7 @@ public:
         mAbsorbedFaces += sibling.facesGenerated;
         mAbsorbed.add(sibling.stats);
         decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+        mDec.compactQueue();
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }

@@ -512,9 +512,17 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
     std::lock_guard<std::mutex> lock(mProgressMutex);
     mSampled = {std::min(mSampled[0], m.minValue), std::max(mSampled[1], m.maxValue)};
     ++mDone;
-    if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
-    // Released leaves are small heap objects: give the pages they emptied back.
-    if (mDone % kMallocTrimEveryBlocks == 0) malloc_trim(0);
+    if (mDone == mRankBlocks) {
+        // Every block has been sampled (a block counts itself done after its last read): what is left
+        // of the grid goes before the top joins and the final pass, where the run has its peak.
+        mVol.reset();
+        mLeafSamplers.reset();
+        malloc_trim(0);
+    } else {
+        if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
+        // Released leaves are small heap objects: give the pages they emptied back.
+        if (mDone % kMallocTrimEveryBlocks == 0) malloc_trim(0);
+    }
     if (mProgress && (mDone % kProgressEveryBlocks == 0 || mDone == mRankBlocks) &&
         !mProgress->update(double(mDone) / double(mRankBlocks), integ.decimator().faceCount()))
         throw Cancelled("cancelled");
