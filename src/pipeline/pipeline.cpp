@@ -166,6 +166,7 @@ private:
     EmptySurfaceError noSurface() const;
 
     static constexpr size_t kMallocTrimEveryBlocks = 4096;
+    static constexpr uint8_t kEarlySampler = 16;  // one early reader in mLeafSamplers (up to 8 readers each)
 
     const std::string& mPath;
     const Options& mOpt;
@@ -186,8 +187,16 @@ private:
     double mVoxelArea = 0.0;
     Levels mRoot;  // the tree's result: the whole surface, per level (rank 0 only, in a distributed run)
     // How many blocks still to be integrated sample each block's leaf (its own block and the up to 7
-    // below, behind and left of it that this process extracts): at zero the leaf is freed.
+    // below, behind and left of it that this process extracts): at zero the leaf is freed. In the high
+    // four bits, how many of them lie more than a slab before the leaf's own (the row below a band's
+    // edge, a sweep ahead of the band): when those are done the leaf is parked until its own slabs
+    // read it again, unless they have started. Per block, which of its leaves it reads that early.
     std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
+    std::unique_ptr<uint8_t[]> mEarlyReads;
+    std::mutex mParkMutex;  // slab starts against parking: a started slab may be reading a leaf
+    size_t mSlabsStarted = 0;  // slabs of this process below this index have started
+    size_t slabOf(size_t block) const;
+    void parkOrKeep(size_t leaf, const BlockOrigin& origin);
     size_t mRankBlocks = 0;  // blocks this process extracts (all of them without ranks)
     // Seconds, peak memory (MB) and bytes sent of each rank below this one, gathered up the tree with
     // the meshes; and the seconds of each node made here.
@@ -443,6 +452,10 @@ void PipelineRun::watch(Decimator& dec)
 Levels PipelineRun::extractSlab(size_t si)
 {
     const double start = mClock.seconds();
+    {
+        std::lock_guard<std::mutex> lock(mParkMutex);
+        mSlabsStarted = std::max(mSlabsStarted, si + 1);
+    }
     auto integ = std::make_unique<Integrator>(mOpt, mRatio, mSlabBatch, uint32_t(si));
     Decimator& dec = integ->decimator();
     dec.setVoxelArea(mVoxelArea);
@@ -490,7 +503,7 @@ Levels PipelineRun::extractSlab(size_t si)
 void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
 {
     BlockSamples s;
-    mVol->sample(mBlocks[i], s);
+    mVol->sample(mBlocks[i], s, mEarlyReads[i]);
     m.blockIndex = i;
     const auto mm = std::minmax_element(s.values.begin(), s.values.end());
     m.minValue = *mm.first;
@@ -517,6 +530,7 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
         // of the grid goes before the top joins and the final pass, where the run has its peak.
         mVol.reset();
         mLeafSamplers.reset();
+        mEarlyReads.reset();
         malloc_trim(0);
     } else {
         if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
@@ -554,23 +568,55 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
 {
     mRankBlocks = end - begin;
     mLeafSamplers.reset(new std::atomic<uint8_t>[mBlocks.size()]);
+    mEarlyReads.reset(new uint8_t[mBlocks.size()]());
     for (size_t j = 0; j < mBlocks.size(); ++j) mLeafSamplers[j].store(0, std::memory_order_relaxed);
+    mSlabsStarted = 0;
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t i = range.begin(); i != range.end(); ++i)
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const size_t slab = slabOf(i);
+            int d = 0;
             forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
                 const size_t j = blockIndex(leaf);
-                if (j < mBlocks.size()) mLeafSamplers[j].fetch_add(1, std::memory_order_relaxed);
+                if (j < mBlocks.size()) {
+                    const bool early = slab + 1 < slabOf(j);
+                    mLeafSamplers[j].fetch_add(early ? kEarlySampler + 1 : 1, std::memory_order_relaxed);
+                    mEarlyReads[i] |= uint8_t(early) << d;
+                }
+                ++d;
             });
+        }
     });
 }
 
-// Once the last block sampling a leaf is integrated (in whichever slab), the leaf is freed.
+size_t PipelineRun::slabOf(size_t block) const
+{
+    const auto it = std::upper_bound(mSlabs.begin(), mSlabs.end(), block, [](size_t b, const Slab& s) { return b < s.begin; });
+    return size_t(it - mSlabs.begin()) - 1;
+}
+
+// Once the last block sampling a leaf is integrated (in whichever slab), the leaf is freed; once the
+// last of its early readers is, it is parked.
 void PipelineRun::releaseSampledLeaves(size_t i)
 {
+    const uint8_t early = mEarlyReads[i];
+    int d = 0;
     forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
         const size_t j = blockIndex(leaf);
-        if (j < mBlocks.size() && mLeafSamplers[j].fetch_sub(1, std::memory_order_acq_rel) == 1) mVol->releaseLeaf(leaf);
+        const bool isEarly = early >> d++ & 1;
+        if (j >= mBlocks.size()) return;
+        const uint8_t step = isEarly ? kEarlySampler + 1 : 1;
+        const uint8_t left = uint8_t(mLeafSamplers[j].fetch_sub(step, std::memory_order_acq_rel) - step);
+        if ((left & (kEarlySampler - 1)) == 0) mVol->releaseLeaf(leaf);
+        else if (isEarly && left < kEarlySampler) parkOrKeep(j, leaf);
     });
+}
+
+// The leaf's other readers are in the slab before its own or later: parked if none of those has
+// started (slabs start in order), else kept for them.
+void PipelineRun::parkOrKeep(size_t leaf, const BlockOrigin& origin)
+{
+    std::lock_guard<std::mutex> lock(mParkMutex);
+    if (mSlabsStarted < slabOf(leaf)) mVol->parkLeaf(origin);
 }
 
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.

@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <sys/mman.h>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -109,18 +110,17 @@ public:
 
     uint64_t tileShellBlocks(const Classifier& c) const override { return countTileShellBlocks(mGrid->tree(), c); }
 
-    void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const override
+    void sample(const std::array<int32_t, 3>& origin, BlockSamples& out, uint8_t reloadable) const override
     {
-        loadLeaves(origin);
+        loadLeaves(origin, reloadable);
         sampleUnchecked(origin, out);
     }
 
     // The first read of a leaf's voxels happens here, one thread per leaf (a lock stripe by origin),
     // for the up to 8 leaves the block's 9^3 samples touch: afterwards they are in memory and the
     // accessor's reads load nothing. A leaf that failed before is reported again.
-    void loadLeaves(const std::array<int32_t, 3>& origin) const
+    void loadLeaves(const std::array<int32_t, 3>& origin, uint8_t reloadable) const
     {
-        using LeafT = typename GridT::TreeType::LeafNodeType;
         for (int d = 0; d < 8; ++d) {
             const openvdb::Coord c(origin[0] + 8 * (d & 1), origin[1] + 8 * ((d >> 1) & 1), origin[2] + 8 * ((d >> 2) & 1));
             LeafT* leaf = mGrid->tree().probeLeaf(c);
@@ -132,6 +132,13 @@ public:
             const uint32_t stripe = uint32_t(o.x()) * 73856093u ^ uint32_t(o.y()) * 19349663u ^ uint32_t(o.z()) * 83492791u;
             std::lock_guard<std::mutex> lock(mLoadMutex[stripe % kLoadStripes]);
             if (!leaf->buffer().isOutOfCore()) continue;
+            if (reloadable >> d & 1) {
+                // A copy made while the voxels are still on disk keeps their place in the file.
+                auto unread = std::make_unique<LeafT>(*leaf);
+                std::lock_guard<std::mutex> parked(mUnreadMutex);
+                mUnread[{o.x(), o.y(), o.z()}] = std::move(unread);
+                mUnreadCount.store(mUnread.size(), std::memory_order_relaxed);
+            }
             try {
                 loadLeaf(*leaf, mInfo.gridName);
             } catch (const InputError& e) {
@@ -196,7 +203,6 @@ public:
     // pages as the sweep passes. Costs a second topology for a moment.
     void layOutInSweepOrder()
     {
-        using LeafT = typename GridT::TreeType::LeafNodeType;
         std::vector<const LeafT*> leaves;
         leaves.reserve(mGrid->tree().leafCount());
         for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(it.getLeaf());
@@ -211,15 +217,42 @@ public:
         ::malloc_trim(0);
     }
 
+    void parkLeaf(const std::array<int32_t, 3>& o) override
+    {
+        if (!mFromFile) return;
+        std::unique_ptr<LeafT> unread;
+        {
+            std::lock_guard<std::mutex> lock(mUnreadMutex);
+            const auto it = mUnread.find(o);
+            if (it == mUnread.end()) return;
+            unread = std::move(it->second);
+            mUnread.erase(it);
+            mUnreadCount.store(mUnread.size(), std::memory_order_relaxed);
+        }
+        // The copy still on disk takes the loaded leaf's place (which is deleted), as releaseLeaf
+        // puts a tile there: in the parent only, under the same lock.
+        const openvdb::Coord ijk(o[0], o[1], o[2]);
+        std::lock_guard<std::mutex> lock(mReleaseMutex);
+        if (ParentT* parent = mGrid->tree().template probeNode<ParentT>(ijk))
+            if (parent->isChildMaskOn(ParentT::coordToOffset(ijk))) {
+                parent->addLeaf(unread.release());
+                mParked.fetch_add(1, std::memory_order_relaxed);
+            }
+    }
+
     void releaseLeaf(const std::array<int32_t, 3>& o) override
     {
         if (!mFromFile) return;  // a caller's grid stays whole
+        if (mUnreadCount.load(std::memory_order_relaxed) > 0) {
+            std::lock_guard<std::mutex> lock(mUnreadMutex);
+            mUnread.erase(o);
+            mUnreadCount.store(mUnread.size(), std::memory_order_relaxed);
+        }
         // The whole leaf goes, not just its voxels: the node and its mask are ~100 bytes a leaf, which
         // would otherwise stay to the end of the run. Nothing samples
         // this leaf again (blocks only sample leaves at or above their origin, and this block was the
         // last), so the parent's entry becomes an inactive background tile. Other threads may be
         // reading other entries of the same parent; only the writers are serialised.
-        using ParentT = typename GridT::TreeType::RootNodeType::ChildNodeType::ChildNodeType;
         const openvdb::Coord ijk(o[0], o[1], o[2]);
         std::lock_guard<std::mutex> lock(mReleaseMutex);
         if (ParentT* parent = mGrid->tree().template probeNode<ParentT>(ijk)) {
@@ -250,7 +283,6 @@ public:
             lo = std::min(lo, double(*tiles));
             hi = std::max(hi, double(*tiles));
         }
-        using LeafT = typename GridT::TreeType::LeafNodeType;
         std::vector<LeafT*> leaves;
         if (copy != mGrid) copy->tree().getNodes(leaves);
         else for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(const_cast<LeafT*>(it.getLeaf()));
@@ -276,8 +308,14 @@ public:
     }
 
 private:
+    using LeafT = typename GridT::TreeType::LeafNodeType;
+    using ParentT = typename GridT::TreeType::RootNodeType::ChildNodeType::ChildNodeType;
     typename GridT::Ptr mGrid;
     std::mutex mReleaseMutex;
+    // Copies, still on disk, of the leaves a reloadable read loaded, until they are parked or released.
+    mutable std::mutex mUnreadMutex;
+    mutable std::map<std::array<int32_t, 3>, std::unique_ptr<LeafT>> mUnread;
+    mutable std::atomic<size_t> mUnreadCount{0};
     // First loads of leaves (loadLeaves): a lock per stripe of leaf origins; the first damaged leaf's
     // message, repeated to every later sample so no block reads the emptied leaf as data.
     static constexpr size_t kLoadStripes = 64;

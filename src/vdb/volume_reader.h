@@ -3,6 +3,7 @@
 // the block list, 9^3 block samples, the index-to-world map and the grid's sign convention.
 #pragma once
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -51,13 +52,23 @@ public:
     // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
     virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
-    // when the voxels cannot be read from the file (delayed loading).
-    virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) const = 0;
+    // when the voxels cannot be read from the file (delayed loading). Bit d of `reloadable` stands for
+    // the leaf at origin + 8 * (d & 1, d >> 1 & 1, d >> 2 & 1): if this read is the one that loads it,
+    // the leaf may be parked afterwards (parkLeaf).
+    virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out, uint8_t reloadable = 0) const = 0;
     // Frees the leaf whose origin is `blockOrigin`, if any. A leaf is sampled by its own block and the
     // up to 7 blocks below, behind and left of it (their +x/+y/+z corner layers): the caller frees it once
     // all of those it extracts have been integrated (pipeline.cpp counts them), so live voxel data stays
     // about one layer of blocks per slab in progress. Thread-safe; nothing may sample the leaf afterwards.
     virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    // Drops the voxels of a leaf that a sample() marked reloadable loaded, but keeps the leaf: the next
+    // sample reads them from the file again. For a leaf whose other readers come much later (a leaf on
+    // a band's edge is read by the last row of the band below it a whole sweep before its own band:
+    // block_order.h), so that a plane of leaves does not wait in memory in between. Thread-safe;
+    // nothing may sample the leaf while this runs. A no-op for a leaf not loaded that way.
+    virtual void parkLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
+    // How many leaves parkLeaf has parked so far.
+    uint64_t parkedLeaves() const { return mParked.load(std::memory_order_relaxed); }
     // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
     // a few MB (more often, the other threads' TLB flushes cost time).
     static constexpr size_t kTrimEveryBlocks = 16;
@@ -75,6 +86,7 @@ protected:
     VolumeInfo mInfo;
     bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
+    std::atomic<uint64_t> mParked{0};
 
 private:
     mutable std::once_flag mMappedOnce;
