@@ -53,6 +53,26 @@ void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
     for (auto leaf = grid->tree().cbeginLeaf(); leaf; ++leaf) ASSERT_FALSE(leaf->buffer().empty());
 }
 
+// A random sparse grid written to a file and opened from it (delayed loading).
+struct FileVolume {
+    openvdb::FloatGrid::Ptr grid;
+    std::string path;
+    std::unique_ptr<vi::Volume> volume;
+};
+
+FileVolume fileVolume(unsigned seed, const std::string& name)
+{
+    openvdb::initialize();
+    vt::GridSpec spec;
+    spec.seed = seed;
+    FileVolume f;
+    f.grid = vt::randomSparseGrid(spec);
+    f.grid->setName(name);
+    f.path = vt::writeGrid(f.grid, "file_volume_" + name);
+    f.volume = vi::Volume::open(f.path, "");
+    return f;
+}
+
 } // namespace
 
 TEST(GridVolume, SameAsTheFileReader)
@@ -90,13 +110,9 @@ TEST(FileVolume, DroppingTheInputMappingNeverTouchesOtherMemory)
     // trimInputMapping() drops the pages of the input file's mapping. The mapping is unmapped once no
     // voxel buffer is left on disk, and its addresses may then come back as heap memory: the volume
     // must keep it alive, or dropping "its" pages would zero live data.
-    openvdb::initialize();
-    vt::GridSpec spec;
-    spec.seed = 5;
-    auto grid = vt::randomSparseGrid(spec);
-    grid->setName("trim");
-    const std::string path = vt::writeGrid(grid, "trim_mapping");
-    auto vol = vi::Volume::open(path, "");
+    const FileVolume f = fileVolume(5, "trim");
+    const std::string& path = f.path;
+    const auto& vol = f.volume;
     vol->trimInputMapping();  // looks the mapping up while buffers are still on disk
     vi::Classifier c;
     c.insideBelow = vol->info().levelSet;
@@ -126,12 +142,9 @@ TEST(FileVolume, AParkedLeafReadsTheSameVoxelsAgain)
     // A leaf loaded by a reloadable read and parked goes back to disk: the next read decodes it from
     // the file again and must see the same voxels. A leaf loaded without the mark is never parked,
     // and a parked leaf read again without it stays.
-    openvdb::initialize();
-    vt::GridSpec spec;
-    spec.seed = 7;
-    auto grid = vt::randomSparseGrid(spec);
-    grid->setName("park");
-    auto vol = vi::Volume::open(vt::writeGrid(grid, "park_leaves"), "");
+    const FileVolume f = fileVolume(7, "park");
+    const auto& grid = f.grid;
+    const auto& vol = f.volume;
     vi::Classifier c;
     c.insideBelow = vol->info().levelSet;
     c.iso = 0.0;
