@@ -277,6 +277,32 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_EQ(home.points, travelled.points);
 }
 
+TEST(Decimator, SealingTheOpenVerticesBetweenBlocksChangesNothing)
+{
+    // A finished node keeps its open vertices sorted (seal); a block added after that moves them back
+    // to the hash map. The welds, hence the mesh, are the same as without the round trip.
+    auto run = [](bool sealBetween) {
+        const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+        Decimator d;
+        d.addBlock(halves[0]);
+        const size_t open = d.openVertices();
+        if (sealBetween) {
+            d.seal();
+            EXPECT_EQ(d.openVertices(), open);
+        }
+        d.addBlock(halves[1]);
+        d.seal();
+        d.finalizeRemaining();
+        EXPECT_EQ(d.openVertices(), 0u);
+        d.decimateTo(150);
+        return d.mesh();
+    };
+    const Mesh plain = run(false), sealed = run(true);
+    EXPECT_LE(plain.triangles.size(), 150u);
+    EXPECT_EQ(plain.triangles, sealed.triangles);
+    EXPECT_EQ(plain.points, sealed.points);
+}
+
 TEST(Decimator, PieceBytesThatEndEarlyAreRefused)
 {
     const std::array<BlockMesh, 2> halves = ellipsoidHalves();

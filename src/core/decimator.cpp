@@ -306,8 +306,27 @@ bool Decimator::collapseCheapestEdge(uint32_t f, bool aroundFace)
     return collapse(pick.first, pick.second, std::numeric_limits<float>::infinity(), nullptr) == Outcome::Collapsed;
 }
 
+void Decimator::seal()
+{
+    if (mSealed) return;
+    mSealedOpen.assign(mOpen.begin(), mOpen.end());
+    std::sort(mSealedOpen.begin(), mSealedOpen.end());
+    mOpen = {};
+    mSealed = true;
+}
+
+void Decimator::unseal()
+{
+    if (!mSealed) return;
+    mOpen.reserve(mSealedOpen.size());
+    mOpen.insert(mSealedOpen.begin(), mSealedOpen.end());
+    mSealedOpen = {};
+    mSealed = false;
+}
+
 void Decimator::addBlock(const BlockMesh& block)
 {
+    unseal();
     std::vector<uint32_t> ids(block.keys.size());
     for (size_t i = 0; i < block.keys.size(); ++i) {
         auto it = mOpen.find(block.keys[i]);
@@ -393,10 +412,9 @@ MeshPiece Decimator::takePiece()
         if (live(r)) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
     mRefused = {};
     // Open vertices in key order (hash-map order is not part of the output contract).
-    piece.open.reserve(mOpen.size());
-    for (const auto& [key, id] : mOpen) piece.open.emplace_back(key, dense[id]);
-    std::sort(piece.open.begin(), piece.open.end());
-    mOpen = {};
+    seal();
+    piece.open = std::move(mSealedOpen);
+    for (auto& open : piece.open) open.second = dense[open.second];
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
         if (mMeta[v].alive) {
             piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final != 0};
@@ -419,21 +437,29 @@ void Decimator::absorb(MeshPiece&& piece)
 {
     const size_t n = piece.vertices.size();
     std::vector<uint32_t> remap(n, UINT32_MAX);
+    // Both open lists in key order, walked together into the merged one.
+    seal();
+    std::vector<std::pair<EdgeKey, uint32_t>> open;
+    open.reserve(mSealedOpen.size() + piece.open.size());
+    auto mine = mSealedOpen.cbegin();
     for (const auto& [key, id] : piece.open) {
+        while (mine != mSealedOpen.cend() && mine->first < key) open.push_back(*mine++);
         const MeshPiece::Vertex& theirs = piece.vertices[id];
-        auto it = mOpen.find(key);
-        if (it != mOpen.end()) {
-            remap[id] = it->second;
-            VertexGeom& mine = mGeom[it->second];
-            mine.q = edgeQuadric(mine.p, mine.q, theirs.p, theirs.q);
-            copyExtras(it->second, piece, id);
+        if (mine != mSealedOpen.cend() && mine->first == key) {
+            remap[id] = mine->second;
+            VertexGeom& welded = mGeom[mine->second];
+            welded.q = edgeQuadric(welded.p, welded.q, theirs.p, theirs.q);
+            copyExtras(mine->second, piece, id);
+            open.push_back(*mine++);
         } else {
             remap[id] = newVertex(theirs.p);
             mGeom[remap[id]].q = theirs.q;
             copyExtras(remap[id], piece, id);
-            mOpen.emplace(key, remap[id]);
+            open.emplace_back(key, remap[id]);
         }
     }
+    open.insert(open.end(), mine, mSealedOpen.cend());
+    mSealedOpen = std::move(open);
     piece.open = {};
     for (uint32_t v = 0; v < n; ++v) {
         if (remap[v] == UINT32_MAX) {
@@ -490,12 +516,21 @@ size_t Decimator::finalizeRemaining()
 size_t Decimator::finalizeOpen(const std::function<bool(EdgeKey)>& which)
 {
     std::vector<uint32_t> open;
-    for (auto it = mOpen.begin(); it != mOpen.end();) {
-        if (which(it->first)) {
-            open.push_back(it->second);
-            it = mOpen.erase(it);
-        } else {
-            ++it;
+    if (mSealed) {
+        size_t kept = 0;
+        for (const auto& e : mSealedOpen)
+            if (which(e.first)) open.push_back(e.second);
+            else mSealedOpen[kept++] = e;
+        mSealedOpen.resize(kept);
+        mSealedOpen.shrink_to_fit();  // a node waiting for its sibling holds its seams only
+    } else {
+        for (auto it = mOpen.begin(); it != mOpen.end();) {
+            if (which(it->first)) {
+                open.push_back(it->second);
+                it = mOpen.erase(it);
+            } else {
+                ++it;
+            }
         }
     }
     std::sort(open.begin(), open.end());  // map order is not deterministic across runs
@@ -1052,6 +1087,7 @@ Mesh Decimator::takeMesh()
     mHeap = {};
     mRefused = {};
     mOpen = {};
+    mSealedOpen = {};
     mFreeVerts = {};
     mFreeFaces = {};
     mDrift = {};

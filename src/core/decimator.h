@@ -150,7 +150,11 @@ public:
     size_t faceCount() const { return mFaceCount; }
     size_t vertexCount() const { return mVertexCount; }
     size_t uncontractibleFaces() const { return mUncontractibleFaces; }
-    size_t openVertices() const { return mOpen.size(); }
+    size_t openVertices() const { return mSealed ? mSealedOpen.size() : mOpen.size(); }
+    // No more blocks come (a finished node of the merge tree): the open vertices move from the hash
+    // map to an array sorted by key, 16 bytes a vertex against ~40, and merges weld by walking both
+    // sorted lists. addBlock moves them back.
+    void seal();
     uint64_t finalizations() const { return mFinalizations; }
     // Collapses tried by decimateTo(), legal or not: the work a pass did beyond queue upkeep.
     uint64_t collapseAttempts() const { return mAttempts; }
@@ -299,6 +303,9 @@ private:
     ChunkedVector<Face> mFaces;
     std::vector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
+    std::vector<std::pair<EdgeKey, uint32_t>> mSealedOpen;  // the same once sealed (seal()), sorted
+    bool mSealed = false;
+    void unseal();
     QuadHeap<Candidate> mHeap;
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
     // the sum of both ends' ring counters at refusal (its low 31 bits: the record stays 12 bytes, and

@@ -161,6 +161,7 @@ public:
         if (mSinceLast > 0) decimate(batchTarget(double(mFacesGenerated)));
         mSinceLast = 0;
         mStats.maxErrorAccepted = mDec.maxErrorAccepted();
+        mDec.seal();
     }
 
     // This node's mesh and numbers, for its parent in the merge tree; the integrator is left empty.
