@@ -95,6 +95,7 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
                     const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = 64;
+    constexpr size_t kTrimEveryBlocks = 2 * Volume::kTrimEveryBlocks;  // per thread
     const size_t runs = (end - begin + kRun - 1) / kRun;
     const auto runBlocks = [&](size_t run) {
         const size_t first = begin + run * kRun;
@@ -107,6 +108,11 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
         for (size_t i = first; i < last; ++i) {
             vol.sample(blocks[i], s);
             faces += countBlockTriangles(s, cls);
+            // The pages a run's leaf reads fault in (64 KB around each) would otherwise stay until the
+            // run is added: runs of several threads at once made the count the peak of a run kept to a
+            // small output (up-sampled noise 448^3 -f 200000: 135 MB, 116 MB trimming every 16 blocks,
+            // 118 MB every 32 at half the extra time, +5 % of the count).
+            if ((i - first + 1) % kTrimEveryBlocks == 0) vol.trimInputMapping();
         }
         return std::make_pair(run, faces);
     };
