@@ -171,7 +171,7 @@ private:
     // of the corners that share its vertex, headed at the vertex. No allocation per vertex or face,
     // and a vertex's faces are walked by following `next`.
     static constexpr uint32_t kNone = UINT32_MAX;
-    // A vertex in two arrays: what the queue and the ring walks read on every step (20 bytes, three
+    // A vertex in two arrays: what the queue and the ring walks read on every step (16 bytes, four
     // to a cache line) apart from the geometry the cost and fold checks need (104 bytes).
     // One 88-byte record made every queue check load a line or two of position and quadric it did
     // not use.
@@ -184,7 +184,6 @@ private:
         // triangles across edges as if they were free.
         Quadric q;
     };
-    // 16 bytes, four to a cache line and none across two.
     struct VertexMeta {
         VertexMeta() : ring(0), alive(0), final(0) {}
         uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
