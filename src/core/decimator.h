@@ -322,7 +322,7 @@ private:
     }
     bool ringsChanged(const Refused& r) const { return refusal(r.a, r.b, false).stamp != r.stamp; }
     // In chunks of 12 KB: a merge appends its child's pairs and passes append more, and a doubling
-    // std::vector held up to twice the pairs (5.9 MB of the 448^3 R = 0.02 run's peak).
+    // std::vector would hold up to twice the pairs.
     ChunkedVector<Refused, 10> mRefused;
     // The refused pairs `retry` picks go back to the queue (those still an edge); the others of living
     // vertices stay refused.

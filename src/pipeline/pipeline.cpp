@@ -95,7 +95,9 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
                     const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = 64;
-    constexpr size_t kTrimEveryBlocks = 2 * Volume::kTrimEveryBlocks;  // per thread
+    // Per thread, twice extraction's interval: each trim flushes the other threads' TLBs, and the
+    // count does nothing else between reads.
+    constexpr size_t kTrimEveryBlocks = 2 * Volume::kTrimEveryBlocks;
     const size_t runs = (end - begin + kRun - 1) / kRun;
     const auto runBlocks = [&](size_t run) {
         const size_t first = begin + run * kRun;
@@ -109,9 +111,8 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
             vol.sample(blocks[i], s);
             faces += countBlockTriangles(s, cls);
             // The pages a run's leaf reads fault in (64 KB around each) would otherwise stay until the
-            // run is added: runs of several threads at once made the count the peak of a run kept to a
-            // small output (up-sampled noise 448^3 -f 200000: 135 MB, 116 MB trimming every 16 blocks,
-            // 118 MB every 32 at half the extra time, +5 % of the count).
+            // run is added, with several runs in flight: the count would be the peak of a run kept to
+            // a small output (docs/perf.md).
             if ((i - first + 1) % kTrimEveryBlocks == 0) vol.trimInputMapping();
         }
         return std::make_pair(run, faces);
@@ -608,7 +609,7 @@ void PipelineRun::releaseSampledLeaves(size_t i)
     int d = 0;
     forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
         const size_t j = blockIndex(leaf);
-        const bool isEarly = early >> d++ & 1;
+        const bool isEarly = (early >> d++) & 1;
         if (j >= mBlocks.size()) return;
         const uint8_t step = isEarly ? kEarlySampler + 1 : 1;
         const uint8_t left = uint8_t(mLeafSamplers[j].fetch_sub(step, std::memory_order_acq_rel) - step);
