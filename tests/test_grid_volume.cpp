@@ -1,6 +1,7 @@
 // Volume::fromGrid (an in-memory grid, read only) gives what Volume::open gives for the same grid read
 // from a file: the same info, block list, samples and value range; and it never frees the caller's voxels.
 #include "test_grids.h"
+#include "vdb/block_order.h"
 #include "vdb/volume_reader.h"
 
 #include "vdb_isosimp/vdb_isosimp.h"
@@ -151,7 +152,7 @@ TEST(FileVolume, AParkedLeafReadsTheSameVoxelsAgain)
     const auto blocks = vol->blocks(c);
     const auto leavesOf = [](const std::array<int32_t, 3>& o) {
         std::vector<std::array<int32_t, 3>> l;
-        for (int d = 0; d < 8; ++d) l.push_back({o[0] + 8 * (d & 1), o[1] + 8 * ((d >> 1) & 1), o[2] + 8 * ((d >> 2) & 1)});
+        for (int d = 0; d < 8; ++d) l.push_back(vi::sampledLeaf(o, d));
         return l;
     };
     const auto storedLeaves = [&](const std::array<int32_t, 3>& o) {

@@ -564,11 +564,11 @@ size_t PipelineRun::blockIndex(const BlockOrigin& o) const
     return it != mBlocks.end() && *it == o ? size_t(it - mBlocks.begin()) : mBlocks.size();
 }
 
-// Block i samples the leaves at its origin + 8 * {0,1}^3 (its +x/+y/+z corner layers).
+// f(leaf, d) for the leaves block o samples (block_order.h's sampledLeaf).
 template <typename F>
 static void forSampledLeaves(const BlockOrigin& o, F&& f)
 {
-    for (int d = 0; d < 8; ++d) f(BlockOrigin{o[0] + 8 * (d & 1), o[1] + 8 * ((d >> 1) & 1), o[2] + 8 * ((d >> 2) & 1)});
+    for (int d = 0; d < 8; ++d) f(sampledLeaf(o, d), d);
 }
 
 void PipelineRun::countLeafSamplers(size_t begin, size_t end)
@@ -581,15 +581,13 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const size_t slab = slabOf(i);
-            int d = 0;
-            forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
+            forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf, int d) {
                 const size_t j = blockIndex(leaf);
                 if (j < mBlocks.size()) {
                     const bool early = slab + 1 < slabOf(j);
                     mLeafSamplers[j].fetch_add(early ? kEarlySampler + 1 : 1, std::memory_order_relaxed);
                     mEarlyReads[i] |= uint8_t(early) << d;
                 }
-                ++d;
             });
         }
     });
@@ -606,10 +604,9 @@ size_t PipelineRun::slabOf(size_t block) const
 void PipelineRun::releaseSampledLeaves(size_t i)
 {
     const uint8_t early = mEarlyReads[i];
-    int d = 0;
-    forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf) {
+    forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf, int d) {
         const size_t j = blockIndex(leaf);
-        const bool isEarly = (early >> d++) & 1;
+        const bool isEarly = (early >> d) & 1;
         if (j >= mBlocks.size()) return;
         const uint8_t step = isEarly ? kEarlySampler + 1 : 1;
         const uint8_t left = uint8_t(mLeafSamplers[j].fetch_sub(step, std::memory_order_acq_rel) - step);

@@ -20,6 +20,13 @@ namespace vdb_isosimp {
 
 using BlockOrigin = std::array<int32_t, 3>;
 
+// The leaves the 9^3 samples of block o read, d = 0..7: its own (d = 0) and those at its +x/+y/+z sides,
+// o + 8 (d & 1, d >> 1 & 1, d >> 2 & 1). Bit d of a mask over a block's leaves (Volume::sample) names this one.
+inline BlockOrigin sampledLeaf(const BlockOrigin& o, int d)
+{
+    return {o[0] + 8 * (d & 1), o[1] + 8 * ((d >> 1) & 1), o[2] + 8 * ((d >> 2) & 1)};
+}
+
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 

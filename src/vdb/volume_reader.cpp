@@ -122,8 +122,8 @@ public:
     void loadLeaves(const std::array<int32_t, 3>& origin, uint8_t reloadable) const
     {
         for (int d = 0; d < 8; ++d) {
-            const openvdb::Coord c(origin[0] + 8 * (d & 1), origin[1] + 8 * ((d >> 1) & 1), origin[2] + 8 * ((d >> 2) & 1));
-            LeafT* leaf = mGrid->tree().probeLeaf(c);
+            const BlockOrigin l = sampledLeaf(origin, d);
+            LeafT* leaf = mGrid->tree().probeLeaf(openvdb::Coord(l[0], l[1], l[2]));
             if (!leaf || !leaf->buffer().isOutOfCore()) {
                 if (mDamaged.load(std::memory_order_acquire)) throwDamaged();
                 continue;
@@ -132,7 +132,7 @@ public:
             const uint32_t stripe = uint32_t(o.x()) * 73856093u ^ uint32_t(o.y()) * 19349663u ^ uint32_t(o.z()) * 83492791u;
             std::lock_guard<std::mutex> lock(mLoadMutex[stripe % kLoadStripes]);
             if (!leaf->buffer().isOutOfCore()) continue;
-            if (reloadable >> d & 1) {
+            if ((reloadable >> d) & 1) {
                 // A copy made while the voxels are still on disk keeps their place in the file.
                 auto unread = std::make_unique<LeafT>(*leaf);
                 std::lock_guard<std::mutex> parked(mUnreadMutex);
