@@ -2,6 +2,7 @@
 #include "core/decimator.h"
 #include "core/edge_key.h"
 #include "core/piece_bytes.h"
+#include "surface_checks.h"
 
 #include <gtest/gtest.h>
 
@@ -192,6 +193,52 @@ BlockMesh ellipsoid(int levels, std::array<double, 3> axes, double scale)
     }
     b.triangles = t;
     return b;
+}
+
+// RMS over the vertices of the distance from the ellipsoid with semi-axes `axes`, to first order
+// (the implicit function's value over its gradient's length).
+double rmsFromEllipsoid(const Mesh& m, std::array<double, 3> axes)
+{
+    double sum = 0;
+    for (const auto& p : m.points) {
+        double f = -1, g2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            f += p[k] * p[k] / (axes[k] * axes[k]);
+            g2 += 4 * p[k] * p[k] / (axes[k] * axes[k] * axes[k] * axes[k]);
+        }
+        sum += f * f / g2;
+    }
+    return std::sqrt(sum / double(m.points.size()));
+}
+
+TEST(Decimator, RegionByRegionReachesTheTargetAsWellAsOnePass)
+{
+    // A finished mesh decimated in one pass and region by region along its long axis (x): the same face
+    // count, both closed and outward, and about as close to the ellipsoid; one region is one pass.
+    const std::array<double, 3> axes{24, 8, 4};
+    const auto run = [&](size_t regions) {
+        Decimator d;
+        d.addBlock(ellipsoid(5, axes, 1.0));
+        d.decimateRegionByRegion(1000, regions);
+        return d.mesh();
+    };
+    const Mesh one = run(1), regions = run(16);
+    Decimator plain;
+    plain.addBlock(ellipsoid(5, axes, 1.0));
+    plain.decimateTo(1000);
+    EXPECT_EQ(one.triangles, plain.mesh().triangles);
+    EXPECT_EQ(one.triangles.size(), 1000u);
+    EXPECT_EQ(regions.triangles.size(), 1000u);
+    EXPECT_NE(regions.triangles, one.triangles) << "the regions changed no collapse";
+    testing::expectClosedOutward(one, false, "one pass");
+    testing::expectClosedOutward(regions, false, "16 regions");
+    const double errOne = rmsFromEllipsoid(one, axes), errRegions = rmsFromEllipsoid(regions, axes);
+    std::printf("RMS distance from the ellipsoid: one pass %.5f, 16 regions %.5f\n", errOne, errRegions);
+    EXPECT_LE(errRegions, 1.25 * errOne);
+    // Every region takes its share: the faces left are spread along x like the vertices before.
+    size_t leftHalf = 0;
+    for (const auto& t : regions.triangles) leftHalf += regions.points[t[0]][0] + regions.points[t[1]][0] + regions.points[t[2]][0] < 0;
+    EXPECT_NEAR(double(leftHalf), 500.0, 50.0);
 }
 
 TEST(Decimator, SameCollapsesInAnyUnitGivenTheVoxelArea)

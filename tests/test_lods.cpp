@@ -69,6 +69,39 @@ TEST(Lods, OneRunWritesEveryLevel)
                     slurp(dir + "/chain_lod" + std::to_string(level) + ".ply")) << "level " << level;
 }
 
+TEST(Lods, HardContentLevelsAreExactAndClosed)
+{
+    // Flat faces and sharp edges (csg), voxels exactly at the iso-value (ct-int), small slabs so that
+    // every level's copies and joins are many: each level closed, manifold, without zero-area faces,
+    // at its target, and as close to the full surface as a run at its rate alone.
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
+    for (const std::string kind : {"csg", "ct-int"}) {
+        ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + kind + " -n 96 -o v.vdb").code, 0) << kind;
+        const std::string exe = q(VDB_ISOSIMP_EXE) + " v.vdb -q --slab-blocks 64 ";
+        ASSERT_EQ(runTool(dir, exe + "-r 1 -o full.ply").code, 0) << kind;
+        const ToolRun lods = runTool(dir, exe + "--lods 0.2,0.05,0.01 -o chain.ply --report chain.json");
+        ASSERT_EQ(lods.code, 0) << kind << ": " << lods.err;
+        const std::string report = slurp(dir + "/chain.json");
+        const char* rates[] = {"0.2", "0.05", "0.01"};
+        for (int level = 0; level < 3; ++level) {
+            const std::string name = "chain_lod" + std::to_string(level) + ".ply", p = "lod" + std::to_string(level) + "_";
+            const ToolRun stats = runTool(dir, q(MESH_STATS_EXE) + " --json " + name);
+            ASSERT_EQ(stats.code, 0) << kind << " " << name << ": " << stats.err;
+            EXPECT_NE(stats.out.find("\"closed\": true"), std::string::npos) << kind << " " << name;
+            EXPECT_NE(stats.out.find("\"manifold\": true"), std::string::npos) << kind << " " << name;
+            EXPECT_EQ(jsonNumber(stats.out, "zero_area_faces"), 0) << kind << " " << name;
+            const double faces = jsonNumber(stats.out, "faces"), target = jsonNumber(report, p + "faces_target");
+            EXPECT_NEAR(faces, target, 0.02 * target) << kind << " " << name;
+            ASSERT_EQ(runTool(dir, exe + "-r " + rates[level] + " -o alone.ply").code, 0) << kind;
+            const double chainRms = rmsFromFull(dir, name), aloneRms = rmsFromFull(dir, "alone.ply");
+            std::printf("%s level %d: %.0f faces (target %.0f), RMS %.6g, -r %s alone %.6g\n", kind.c_str(), level, faces,
+                        target, chainRms, rates[level], aloneRms);
+            EXPECT_LE(chainRms, 1.05 * aloneRms + 1e-9) << kind << " " << name;
+        }
+    }
+}
+
 TEST(Lods, BadChainsAreUsageErrors)
 {
     const ScratchDir scratch;

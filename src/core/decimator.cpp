@@ -830,6 +830,46 @@ size_t Decimator::decimateTo(size_t targetFaces)
     return collapses;
 }
 
+size_t Decimator::decimateRegionByRegion(size_t targetFaces, size_t regions)
+{
+    if (regions <= 1 || mFaceCount <= targetFaces || mVertexCount == 0) return decimateTo(targetFaces);
+    std::array<double, 3> lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (uint32_t v = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive)
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], mGeom[v].p[k]);
+                hi[k] = std::max(hi[k], mGeom[v].p[k]);
+            }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    // Region boundaries at quantiles of the vertices, not of the extent: each region then removes a
+    // share in proportion to its faces (a region of equal width but sparse surface would lose its detail).
+    std::vector<double> along;
+    along.reserve(mVertexCount);
+    for (uint32_t v = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive) along.push_back(mGeom[v].p[axis]);
+    std::sort(along.begin(), along.end());
+    std::vector<double> bounds;
+    for (size_t r = 1; r < regions; ++r) bounds.push_back(along[along.size() * r / regions]);
+    along = {};
+    const auto regionOf = [&](uint32_t v) {
+        return size_t(std::upper_bound(bounds.begin(), bounds.end(), mGeom[v].p[axis]) - bounds.begin());
+    };
+    std::vector<std::vector<Candidate>> waiting(regions);
+    mHeap.drain([&](const Candidate& c) {
+        if (liveFinalPair(c.a(), c.b)) waiting[std::max(regionOf(c.a()), regionOf(c.b))].push_back(c);
+    });
+    const size_t start = mFaceCount, remove = start - targetFaces;
+    size_t collapses = 0;
+    for (size_t r = 0; r < regions; ++r) {
+        for (const Candidate& c : waiting[r]) mHeap.append(c);
+        waiting[r] = {};
+        collapses += decimateTo(start - remove * (r + 1) / regions);
+    }
+    return collapses;
+}
+
 bool Decimator::degenerate(uint32_t f) const
 {
     // Far flatter than the slivers collapses may not create (kMinShape): a face of a sphere squeezed

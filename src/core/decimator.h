@@ -68,6 +68,13 @@ public:
     // Collapses the cheapest contractible edges until at most `targetFaces` faces remain or no legal
     // collapse is left. Returns the number of collapses made.
     size_t decimateTo(size_t targetFaces);
+    // decimateTo, region by region: the live vertices are cut along the mesh's longest axis into
+    // `regions` runs of equal counts; a queued edge joins the queue when the later region of its two
+    // ends comes up, and each region ends once its share of the faces to remove is gone (collapses may
+    // still reach back into the regions before it). For a pass over a whole finished mesh: in cost
+    // order alone, consecutive collapses land anywhere in it, each reading records far from the last
+    // one's; a region's records stay in cache between its collapses. One region is decimateTo.
+    size_t decimateRegionByRegion(size_t targetFaces, size_t regions);
 
     // Moves the mesh out into a piece for a merge (dead queue entries dropped first); this decimator
     // is left empty. Each part is freed as soon as it is copied: the merges are the peak of a run.
