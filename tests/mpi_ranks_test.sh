@@ -51,6 +51,13 @@ for EXTRA in "--max-error 0.3" "--attributes noise --attribute-weight 2 --ratio 
   echo "$EXTRA: 2 ranks, same bytes as one process"
 done
 
+# A chain with the default batch and larger slabs: its coarser level's slab copies are decimated region by
+# region (more than one region's share of faces to remove each), on 2 ranks as in one process.
+"$B/vdb_isosimp" "$W/v.vdb" --lods 0.2,0.05 --slab-blocks 512 -q -o "$W/r_one.ply"
+mpirun -np 2 "$B/vdb_isosimp" "$W/v.vdb" --lods 0.2,0.05 --slab-blocks 512 --threads 1 -q -o "$W/r_two.ply"
+for f in r_one_lod0.ply r_one_lod1.ply; do cmp "$W/$f" "$W/${f/one/two}" || fail "chain, larger slabs: 2 ranks wrote other bytes ($f)"; done
+echo "--lods 0.2,0.05 --slab-blocks 512: 2 ranks, same bytes as one process"
+
 # Damaged voxels that only the last rank reads (the leaf at z = 96 of 112; rank 0 reads z < 72): the
 # error travels up the tree to rank 0, which alone reports it.
 cp "$W/v.vdb" "$W/bad.vdb"
