@@ -200,7 +200,10 @@ public:
     // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
     // and the topology's resident memory would stay whole although its nodes were gone. Copies made
     // in sweep order (their voxels stay unread: delayed loading copies the file position) free their
-    // pages as the sweep passes. Costs a second topology for a moment.
+    // pages as the sweep passes. One row of parents along z at a time: the originals of a row are
+    // whole parents, read one after another, so once they are deleted and the heap consolidated, the
+    // next row's copies fill those ranges in order, and the topology is never held twice (the whole
+    // second copy was the peak of large runs kept to small outputs).
     void layOutInSweepOrder()
     {
         std::vector<const LeafT*> leaves;
@@ -210,11 +213,15 @@ public:
             const openvdb::Coord &p = a->origin(), &q = b->origin();
             return std::make_tuple(p.z(), p.y(), p.x()) < std::make_tuple(q.z(), q.y(), q.x());
         });
+        const auto row = [](const LeafT* leaf) { return leaf->origin().z() & ~int32_t(ParentT::DIM - 1); };
         std::vector<std::unique_ptr<LeafT>> copies;
-        copies.reserve(leaves.size());
-        for (const LeafT* leaf : leaves) copies.push_back(std::make_unique<LeafT>(*leaf));
-        for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
-        ::malloc_trim(0);
+        for (size_t begin = 0, end = 0; begin < leaves.size(); begin = end) {
+            while (end < leaves.size() && row(leaves[end]) == row(leaves[begin])) ++end;
+            copies.clear();
+            for (size_t i = begin; i < end; ++i) copies.push_back(std::make_unique<LeafT>(*leaves[i]));
+            for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
+            ::malloc_trim(0);
+        }
     }
 
     void parkLeaf(const std::array<int32_t, 3>& o) override
