@@ -288,10 +288,11 @@ void PipelineRun::countFacesForTarget(const VolumeOpener& open)
     mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls, [this](double fraction) {
         return !mProgress || mProgress->counting(fraction);
     });
+    // The count alone: it divides among ranks, the second open does not (every rank repeats it).
+    mResult.report.secondsCount = mClock.seconds() - start;
     mVol.reset();
     malloc_trim(0);
     mVol = open();
-    mResult.report.secondsCount = mClock.seconds() - start;
 }
 
 void PipelineRun::setTarget()

@@ -206,19 +206,32 @@ public:
     // second copy was the peak of large runs kept to small outputs).
     void layOutInSweepOrder()
     {
-        std::vector<const LeafT*> leaves;
+        // Sorted by origins read once: the nodes themselves lie all over the heap.
+        struct Placed {
+            std::array<int32_t, 3> zyx;
+            const LeafT* leaf;
+        };
+        std::vector<Placed> leaves;
         leaves.reserve(mGrid->tree().leafCount());
-        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(it.getLeaf());
-        std::sort(leaves.begin(), leaves.end(), [](const LeafT* a, const LeafT* b) {
-            const openvdb::Coord &p = a->origin(), &q = b->origin();
-            return std::make_tuple(p.z(), p.y(), p.x()) < std::make_tuple(q.z(), q.y(), q.x());
-        });
-        const auto row = [](const LeafT* leaf) { return leaf->origin().z() & ~int32_t(ParentT::DIM - 1); };
+        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) {
+            const openvdb::Coord& o = it->origin();
+            leaves.push_back({{o.z(), o.y(), o.x()}, it.getLeaf()});
+        }
+        std::sort(leaves.begin(), leaves.end(), [](const Placed& a, const Placed& b) { return a.zyx < b.zyx; });
+        const auto row = [](const Placed& p) { return p.zyx[0] & ~int32_t(ParentT::DIM - 1); };
+        constexpr size_t kAhead = 8;  // nodes requested ahead of the copy: each is a cache miss
         std::vector<std::unique_ptr<LeafT>> copies;
         for (size_t begin = 0, end = 0; begin < leaves.size(); begin = end) {
             while (end < leaves.size() && row(leaves[end]) == row(leaves[begin])) ++end;
             copies.clear();
-            for (size_t i = begin; i < end; ++i) copies.push_back(std::make_unique<LeafT>(*leaves[i]));
+            for (size_t i = begin; i < end; ++i) {
+                if (i + kAhead < end) {
+                    const char* ahead = reinterpret_cast<const char*>(leaves[i + kAhead].leaf);
+                    __builtin_prefetch(ahead);
+                    __builtin_prefetch(ahead + 64);
+                }
+                copies.push_back(std::make_unique<LeafT>(*leaves[i].leaf));
+            }
             for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
             ::malloc_trim(0);
         }
