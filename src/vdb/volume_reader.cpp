@@ -22,6 +22,7 @@
 #include <memory>
 #include <mutex>
 #include <sstream>
+#include <stdexcept>
 #include <tuple>
 
 #include <malloc.h>
@@ -156,29 +157,45 @@ public:
         throw InputError(mDamage);
     }
 
+    // A block's 9^3 samples come from the up to 8 leaves at its origin and 8 voxels above it along
+    // each axis: each is read straight from its buffer (or is one tile value), not voxel by voxel
+    // through the tree.
     void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
     {
         typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
         out.origin = origin;
-        constexpr int N = BlockSamples::N;
-        openvdb::Coord ijk;
-        for (int z = 0; z < N; ++z) {
-            ijk.z() = origin[2] + z;
-            for (int y = 0; y < N; ++y) {
-                ijk.y() = origin[1] + y;
-                for (int x = 0; x < N; ++x) {
-                    ijk.x() = origin[0] + x;
-                    const double v = double(acc.getValue(ijk));
-                    if (!std::isfinite(v)) {
-                        std::ostringstream s;
-                        s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << v
-                          << " (NaN/Inf values are not allowed)";
-                        throw InputError(s.str());
-                    }
-                    out.at(x, y, z) = v;
-                }
+        constexpr int N = BlockSamples::N, D = int(LeafT::DIM);
+        static_assert(N == D + 1, "a block spans one leaf and the first voxel layer of the next");
+        if (((origin[0] | origin[1] | origin[2]) & (D - 1)) != 0)
+            throw std::logic_error("a block origin off the leaf grid");  // collectBlocks makes none
+        for (int d = 0; d < 8; ++d) {
+            const int lo[3] = {(d & 1) * D, ((d >> 1) & 1) * D, ((d >> 2) & 1) * D};
+            const int hi[3] = {lo[0] ? N : D, lo[1] ? N : D, lo[2] ? N : D};
+            const openvdb::Coord at(origin[0] + lo[0], origin[1] + lo[1], origin[2] + lo[2]);
+            if (const LeafT* leaf = acc.probeConstLeaf(at)) {
+                const auto* v = leaf->buffer().data();
+                for (int z = lo[2]; z < hi[2]; ++z)
+                    for (int y = lo[1]; y < hi[1]; ++y)
+                        for (int x = lo[0]; x < hi[0]; ++x)
+                            out.at(x, y, z) = double(v[((x - lo[0]) * D + (y - lo[1])) * D + (z - lo[2])]);
+            } else {
+                const double tile = double(acc.getValue(at));
+                for (int z = lo[2]; z < hi[2]; ++z)
+                    for (int y = lo[1]; y < hi[1]; ++y)
+                        for (int x = lo[0]; x < hi[0]; ++x) out.at(x, y, z) = tile;
             }
         }
+        bool finite = true;
+        for (const double v : out.values) finite &= std::isfinite(v);
+        if (finite) return;
+        for (int i = 0; i < N * N * N; ++i)
+            if (!std::isfinite(out.values[i])) {
+                const openvdb::Coord ijk(origin[0] + i % N, origin[1] + i / N % N, origin[2] + i / (N * N));
+                std::ostringstream s;
+                s << "voxel " << ijk << " of grid '" << mInfo.gridName << "' is " << out.values[i]
+                  << " (NaN/Inf values are not allowed)";
+                throw InputError(s.str());
+            }
     }
 
     // One copy of a leaf still on disk, never read, keeps the file mapping alive (it is shared by the
