@@ -248,6 +248,40 @@ TEST(DamagedVdb, FormatsOlderThanTheWalkAreRefused)
     EXPECT_FALSE(exists(d + "/out.ply"));
 }
 
+// OpenVDB reads a topology as half floats when the grid's metadata says so, the walk when its type
+// does: a file where they differ (a renamed item, a false flag) is refused before OpenVDB reads it one
+// way and fails (leaking the node it was filling) or reads it the other way unchecked.
+TEST(DamagedVdb, HalfFloatMetadataThatDisagreesWithTheTypeIsRefused)
+{
+    const std::string d = scratch("half_meta");
+    const uint32_t zip = openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK;
+    vdb_samples::write(d + "/whole.vdb", {vdb_samples::half<openvdb::FloatGrid>(vdb_samples::fog())}, zip);
+    const std::string whole = slurp(d + "/whole.vdb");
+    const std::string key = openvdb::GridBase::META_SAVE_HALF_FLOAT;
+    const size_t at = whole.find(key);
+    ASSERT_NE(at, std::string::npos);
+    // After the name: the type name "bool" (length-prefixed), the value's size (1), the value.
+    const size_t value = at + key.size() + 4 + 4 + 4;
+    ASSERT_EQ(whole.substr(at + key.size() + 4, 4), "bool");
+    ASSERT_EQ(whole[value], 1);
+    for (int renamed = 0; renamed < 2; ++renamed) {
+        std::string bytes = whole;
+        if (renamed) bytes[at + key.size() - 1] = 'T';
+        else bytes[value] = 0;
+        writeBytes(d + "/in.vdb", bytes);
+        const Outcome o = runLimited(d);
+        EXPECT_EQ(o.code, 1) << o.err;
+        EXPECT_EQ(badMessage(o.err), "") << o.err;
+        EXPECT_NE(o.err.find("its metadata 'is_saved_as_half_float' disagrees with its type Tree_float_5_4_3_HalfFloat"),
+                  std::string::npos)
+            << (renamed ? "renamed: " : "false: ") << o.err;
+        EXPECT_FALSE(exists(d + "/out.ply"));
+    }
+    writeBytes(d + "/in.vdb", whole);
+    const Outcome o = runLimited(d);
+    EXPECT_EQ(o.code, 0) << o.err;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Located damage
 

@@ -321,10 +321,25 @@ std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, si
     return in.seek(start + bytes) ? "" : "ends early";
 }
 
+// The trees this walk knows: Tree4<float or double, 5, 4, 3>, maybe stored as half floats.
+bool treeFormat(std::string type, bool& half, uint64_t& valueSize)
+{
+    const std::string halfSuffix = "_HalfFloat";
+    half = type.size() > halfSuffix.size() && type.compare(type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0;
+    if (half) type.resize(type.size() - halfSuffix.size());
+    valueSize = type == "Tree_float_5_4_3" ? 4 : type == "Tree_double_5_4_3" ? 8 : 0;
+    return valueSize != 0;
+}
+
+// A grid's "is_saved_as_half_float" metadata as its map holds it: OpenVDB reads the topology as half
+// floats if and only if it is there and true (GridBase::saveFloatAsHalf), whatever the grid's type says.
+enum class HalfFlag { Absent, No, Yes, Other };
+
 // A metadata map (file or grid): uint32 count, then per item name, type name, uint32 size and the
 // value. Every size must fit before `end`, fixed-size types must state their size, and the
 // delayed-load table (read by OpenVDB with no bound of its own) must be consistent.
-std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, DelayedLoadSizes* delayed)
+std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, DelayedLoadSizes* delayed,
+                        HalfFlag* half = nullptr)
 {
     uint32_t count = 0;
     if (!in.value(count) || count > in.left() / 12) return "metadata count ends early or is invalid";
@@ -337,6 +352,10 @@ std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, Del
         const uint64_t fixed = fixedMetadataSize(type);
         if (fixed && n != fixed)
             return "metadata '" + printable(name) + "' of type " + type + " states " + std::to_string(n) + " bytes";
+        if (half && name == openvdb::GridBase::META_SAVE_HALF_FLOAT) {
+            unsigned char b = 0;
+            *half = type != "bool" || n != 1 ? HalfFlag::Other : !in.value(b) ? HalfFlag::Other : b ? HalfFlag::Yes : HalfFlag::No;
+        }
         if (type == "__delayedload" && n > 0) {
             const uint64_t valueEnd = valueStart + n;
             uint32_t leaves = 0;
@@ -444,8 +463,17 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     if (compression & ~uint32_t(0x7)) damaged(path, "grid '" + e.name + "' has unknown compression flags");
     // A leaf record takes at least its value mask and code byte.
     const uint64_t maxLeaves = e.blockPos || e.streamed ? (e.endPos - std::max(e.blockPos, e.gridPos)) / 65 : 0;
-    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed);
+    HalfFlag halfMeta = HalfFlag::Absent;
+    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed, &halfMeta);
     if (!meta.empty()) damaged(path, "grid '" + e.name + "': " + meta);
+    // The topology walk follows the type's "_HalfFloat"; OpenVDB follows the metadata. A file where they
+    // differ would be read one way here and another there (and OpenVDB leaks the node it was filling
+    // when that read fails).
+    bool half = false;
+    uint64_t valueSize = 0;
+    if (treeFormat(e.type, half, valueSize) && (halfMeta == HalfFlag::Other || (halfMeta == HalfFlag::Yes) != half))
+        damaged(path, "grid '" + e.name + "': its metadata '" + openvdb::GridBase::META_SAVE_HALF_FLOAT +
+                          "' disagrees with its type " + printable(e.type));
     std::string mapType;
     if (!in.string(&mapType, 64)) damaged(path, "grid '" + e.name + "': transform ends early");
     const uint64_t mapBytes = linearMapBytes(mapType);
@@ -561,16 +589,6 @@ struct TopologyWalk {
         }
     }
 };
-
-// The trees this walk knows: Tree4<float or double, 5, 4, 3>, maybe stored as half floats.
-bool treeFormat(std::string type, bool& half, uint64_t& valueSize)
-{
-    const std::string halfSuffix = "_HalfFloat";
-    half = type.size() > halfSuffix.size() && type.compare(type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0;
-    if (half) type.resize(type.size() - halfSuffix.size());
-    valueSize = type == "Tree_float_5_4_3" ? 4 : type == "Tree_double_5_4_3" ? 8 : 0;
-    return valueSize != 0;
-}
 
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
 // record: the topology node by node, then every leaf's record (value mask, then the voxel values:
