@@ -31,6 +31,10 @@ for V in v ct; do
       ranks=$(sed -n 's/.*"ranks": *\([0-9]*\).*/\1/p' "$W/${V}_$N.json")
       [ "$ranks" = "$N" ] || fail "$V: report says $ranks ranks, not $N"
       grep -q "\"faces_full\": $full," "$W/${V}_$N.json" || fail "$V: $N ranks counted other than $full faces"
+      for k in queue_pops queue_dead queue_stale collapse_attempts collapses; do
+        [ "$(grep -o "\"$k\": [0-9]*" "$W/${V}_$N.json")" = "$(grep -o "\"$k\": [0-9]*" "$W/${V}_one.json")" ] ||
+          fail "$V: $N ranks x $T threads report other $k than one process"
+      done
       grep -q "\"rank_seconds\": \[[0-9]" "$W/${V}_$N.json" || fail "$V: no per-rank seconds"
       echo "$V: $N ranks x $T threads: same bytes as one process ($slabs slabs, $decimations decimations)"
     done

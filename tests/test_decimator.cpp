@@ -45,6 +45,8 @@ TEST(Decimator, ClosedTetrahedraAreRefusedOnceNotAtEveryPass)
     EXPECT_EQ(d.faceCount(), 200u);
     // Each of the 6 edges of each tetrahedron was tried once and refused.
     EXPECT_EQ(d.collapseAttempts(), 300u);
+    EXPECT_EQ(d.work().pops, 300u);
+    EXPECT_EQ(d.work().collapses, 0u);
     // Later passes (one per batch in the pipeline) retry a refused edge only once the faces around it
     // have changed; nothing changes here, so nothing is tried again.
     for (int pass = 0; pass < 5; ++pass) EXPECT_EQ(d.decimateTo(0), 0u);
@@ -54,6 +56,7 @@ TEST(Decimator, ClosedTetrahedraAreRefusedOnceNotAtEveryPass)
     d.requeueAll();
     EXPECT_EQ(d.decimateTo(0), 0u);
     EXPECT_EQ(d.collapseAttempts(), 600u);
+    EXPECT_EQ(d.work().pops, 600u);
 }
 
 TEST(Decimator, PruneRemovesComponentsBelowAnAreaAndDropKeepsTheLargest)

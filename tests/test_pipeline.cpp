@@ -330,6 +330,18 @@ TEST(Pipeline, SameOutputForAnyThreadCount)
     ASSERT_EQ(a.mesh.triangles.size(), b.mesh.triangles.size());
     EXPECT_TRUE(a.mesh.points == b.mesh.points);
     EXPECT_TRUE(a.mesh.triangles == b.mesh.triangles);
+    // The decimation's work is the same too, and every pop is accounted for.
+    const Report &ra = a.report, &rb = b.report;
+    EXPECT_EQ(ra.queuePops, rb.queuePops);
+    EXPECT_EQ(ra.queueDead, rb.queueDead);
+    EXPECT_EQ(ra.queueStale, rb.queueStale);
+    EXPECT_EQ(ra.collapseAttempts, rb.collapseAttempts);
+    EXPECT_EQ(ra.collapses, rb.collapses);
+    EXPECT_EQ(ra.queuePops, ra.queueDead + ra.queueStale + ra.collapseAttempts);
+    EXPECT_LE(ra.collapses, ra.collapseAttempts);
+    // A counted collapse removes two faces; the zero-area clean-up removes a few more uncounted.
+    EXPECT_GT(ra.collapses, 0u);
+    EXPECT_LE(2 * ra.collapses, ra.facesFull - ra.facesOut);
 }
 
 // A thread count limits one run, not the process: while a run with threads = 1 is under way inside

@@ -788,6 +788,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
     while (mFaceCount > targetFaces && !mHeap.empty()) {
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = mHeap.pop();
+        ++mWork.pops;
         const uint32_t a = c.a(), b = c.b;
         // The next top is most often the next entry popped: its ends' records, read first to tell a
         // live entry from a stale or dead one, load while this one is dealt with.
@@ -803,10 +804,15 @@ size_t Decimator::decimateTo(size_t targetFaces)
             // edges, it removes none of the survivor's), so it is one unless a dead end's slot went to
             // a new vertex meanwhile (rare). collapse() finds no shared face
             // for such a pair and refuses it, so they cost one attempt and change no collapse.
-            if (liveFinalPair(a, b)) push(a, b);
+            if (liveFinalPair(a, b)) {
+                push(a, b);
+                ++mWork.stale;
+            } else {
+                ++mWork.dead;
+            }
             continue;
         }
-        ++mAttempts;
+        ++mWork.attempts;
         // The queued cost bounds every placement's from below (of the geometry; an attribute's part
         // would not): past the error bound already, the pair waits without the topology checks.
         if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
@@ -816,7 +822,10 @@ size_t Decimator::decimateTo(size_t targetFaces)
         double cost;
         const Outcome outcome = collapse(a, b, c.cost(), &cost);
         switch (outcome) {
-        case Outcome::Collapsed: ++collapses; break;
+        case Outcome::Collapsed:
+            ++collapses;
+            ++mWork.collapses;
+            break;
         case Outcome::Refused:
         case Outcome::Folds:
         case Outcome::TooFar:

@@ -59,6 +59,28 @@ struct MeshPiece {
     ChunkedVector<AttributeQuadric> attributes;
 };
 
+// What decimateTo() did, counted per queue entry popped: every pop is an entry of a dead vertex, a
+// stale entry re-evaluated and queued again, or a collapse attempted (which may collapse). The same
+// work for any thread or rank count (the merge tree is fixed), so unlike seconds it compares two
+// builds exactly on a noisy machine.
+struct QueueWork {
+    uint64_t pops = 0, dead = 0, stale = 0, attempts = 0, collapses = 0;
+
+    QueueWork& operator+=(const QueueWork& o)
+    {
+        pops += o.pops;
+        dead += o.dead;
+        stale += o.stale;
+        attempts += o.attempts;
+        collapses += o.collapses;
+        return *this;
+    }
+    QueueWork operator-(const QueueWork& o) const
+    {
+        return {pops - o.pops, dead - o.dead, stale - o.stale, attempts - o.attempts, collapses - o.collapses};
+    }
+};
+
 class Decimator {
 public:
     // Welds the block's vertices to the open frontier by edge key, adds its faces and their quadrics,
@@ -164,7 +186,9 @@ public:
     void seal();
     uint64_t finalizations() const { return mFinalizations; }
     // Collapses tried by decimateTo(), legal or not: the work a pass did beyond queue upkeep.
-    uint64_t collapseAttempts() const { return mAttempts; }
+    uint64_t collapseAttempts() const { return mWork.attempts; }
+    // Everything decimateTo() did so far (counted since this decimator was made or copied from).
+    const QueueWork& work() const { return mWork; }
 
     // The surviving mesh, compacted, vertices in creation order.
     Mesh mesh() const;
@@ -346,7 +370,8 @@ private:
     }
 
     size_t mFaceCount = 0, mVertexCount = 0, mUncontractibleFaces = 0;
-    uint64_t mFinalizations = 0, mAttempts = 0;
+    uint64_t mFinalizations = 0;
+    QueueWork mWork;
     double mMinNormalCos = kDefaultMinNormalCos;
     static constexpr double kMinPlaneWeight = 0.25;  // of a voxel face's area, per face
     static constexpr double kMinVertexWeight = 2.0;  // of a voxel face's area, per vertex

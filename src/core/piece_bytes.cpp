@@ -64,6 +64,8 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     w.put(piece.stats.maxIntermediateFaces);
     w.put(piece.stats.maxUncontractibleFaces);
     w.put(piece.stats.maxErrorAccepted);
+    const QueueWork& work = piece.stats.work;
+    for (uint64_t x : {work.pops, work.dead, work.stale, work.attempts, work.collapses}) w.put(x);
     w.put(uint64_t(piece.stats.trace.size()));
     for (const DecimationRecord& r : piece.stats.trace) {
         w.put(r.facesGenerated);
@@ -129,6 +131,8 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
     piece.stats.maxIntermediateFaces = r.get<uint64_t>();
     piece.stats.maxUncontractibleFaces = r.get<uint64_t>();
     piece.stats.maxErrorAccepted = r.get<double>();
+    QueueWork& work = piece.stats.work;
+    for (uint64_t* x : {&work.pops, &work.dead, &work.stale, &work.attempts, &work.collapses}) *x = r.get<uint64_t>();
     piece.stats.trace.resize(r.count(5 * 8 + 4));
     for (DecimationRecord& d : piece.stats.trace) {
         d.facesGenerated = r.get<uint64_t>();

@@ -702,6 +702,13 @@ Result PipelineRun::finalPass()
         level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
     });
     rep.unfinalizedAtEnd = unfinalized.front() - seamVertices;
+    QueueWork work;
+    for (const auto& level : mRoot) work += level->stats().work;
+    rep.queuePops = work.pops;
+    rep.queueDead = work.dead;
+    rep.queueStale = work.stale;
+    rep.collapseAttempts = work.attempts;
+    rep.collapses = work.collapses;
     const SlabStats all = whole.stats();
     rep.trace.insert(rep.trace.end(), all.trace.begin() + traced, all.trace.end());
     rep.decimations += all.trace.size() - traced;
