@@ -2,7 +2,8 @@
 # Speed and memory against the in-core cascades, measured in the same run (issue "fast and lean"):
 #   ours (2 threads, 1 thread) vs OpenVDB volumeToMesh + meshopt_simplify vs full extraction + OpenMesh,
 #   on the CT-like noise volume at R = 0.2 and 0.02, wall and CPU seconds (user + sys, fastest run each); then peak RSS on a volume and its 2x up-sampled copy
-#   kept to the same face count. Prints a Markdown table with ratios ours / baseline.
+#   kept to the same face count. Prints a Markdown table with ratios ours / baseline, and the decimation work the
+#   reports count (exact: the same for any thread count).
 # Usage: benchmarks/perf.sh [SIZE] [--openmesh] [--scale]
 #   SIZE        noise volume edge in voxels (default 448: ~16M faces at full resolution)
 #   --openmesh  also run full extraction + OpenMesh's decimater (slow: minutes)
@@ -44,6 +45,7 @@ echo "noise ${N}^3, iso $ISO: $FULL faces at full resolution; $(nproc) cores"
 echo
 echo "| case | R | faces out | seconds | CPU s | peak RSS MB | RMS % diag | time / meshopt | CPU / meshopt | RSS / meshopt |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
+WORK=""
 for R in 0.2 0.02; do
   OS=""; OC=""; OM=""; MS=""; MC=""; MM=""
   for ((k = 0; k < REPEAT; k++)); do
@@ -53,6 +55,8 @@ for R in 0.2 0.02; do
     MS=$(minof "$MS" "$SEC"); MC=$(minof "$MC" "$CPU"); MM=$(maxof "$MM" "$MB"); MF=$(field faces_out "$W/out.json")
   done
   OE=$(rms "$W/full.ply" "$W/ours.ply"); ME=$(rms "$W/full.ply" "$W/mo.ply")
+  WORK+="- R = $R: $(field queue_pops "$W/ours.json") queue pops ($(field queue_dead "$W/ours.json") of dead vertices, $(field queue_stale "$W/ours.json") stale), $(field collapse_attempts "$W/ours.json") collapse attempts, $(field collapses "$W/ours.json") collapses
+"
   timed "$B/vdb_isosimp" "$W/noise$N.vdb" --iso $ISO -r $R -j 1 -q -o "$W/ours1.ply"
   S1=$SEC; C1=$CPU; M1=$MB
   awk -v r=$R -v fo=$FO -v os=$OS -v oc=$OC -v om=$OM -v oe=$OE -v ms=$MS -v mc=$MC -v mm=$MM -v mf=$MF -v me=$ME -v s1=$S1 -v c1=$C1 -v m1=$M1 'BEGIN {
@@ -65,6 +69,11 @@ for R in 0.2 0.02; do
       'BEGIN { printf "| full extraction + OpenMesh | %s | %d | %.1f | %.1f | %d | %.5f | %.2f | %.2f | %.2f |\n", r, f, s, c, m, e, s/ms, c/mc, m/mm }'
   fi
 done
+
+# The decimation's work: exact, the same for any thread count, so two builds compare where seconds swing.
+echo
+echo "Decimation work (report of the 2-thread runs):"
+printf '%s' "$WORK"
 
 # Peak RSS follows the output: a volume and its 2x up-sampled copy, both kept to the same face count.
 H=$((N / 2))
