@@ -132,8 +132,8 @@ struct Report {
     uint64_t componentsPruned = 0;    // closed components below Options::minComponentArea removed
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     // The decimation's work, every level of a chain included: queue entries popped, of which entries
-    // of a dead vertex, stale entries queued again and collapses attempted; and collapses made. The
-    // same numbers for any thread or rank count.
+    // of a dead vertex, stale entries queued again and collapses attempted; and the collapses they made
+    // (not the zero-area clean-up's). The same numbers for any thread or rank count.
     uint64_t queuePops = 0, queueDead = 0, queueStale = 0, collapseAttempts = 0, collapses = 0;
     double seconds = 0.0;
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)

@@ -176,6 +176,7 @@ public:
     {
         mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
         mStats.work += mDec.work() - mWorkSeen;
+        mWorkSeen = {};  // the decimator is left empty, its count at zero
         SlabPiece p{mDec.takePiece(), mFacesGenerated + mAbsorbedFaces, std::move(mStats)};
         p.stats.add(mAbsorbed);
         return p;
