@@ -46,7 +46,12 @@ void forEachLevel(Levels& node, const std::function<void(size_t, Integrator&)>& 
 uint64_t levelTarget(const Options& o, const Report& rep, size_t level)
 {
     if (level == 0) return rep.facesTarget;
-    return uint64_t(std::llround(o.lods[level] * double(rep.facesFull)));
+    return coarserLevelTarget(o, rep.facesFull, level);
+}
+
+uint64_t coarserLevelTarget(const Options& o, uint64_t facesFull, size_t level)
+{
+    return uint64_t(std::llround(o.lods[level] * double(facesFull)));
 }
 
 Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSampler& attributes, const Stopwatch& clock)

@@ -29,6 +29,8 @@ void forEachLevel(Levels& node, const std::function<void(size_t level, Integrato
 // The face target of level `level` of a chain: the report's target for the first (a run without a
 // chain has that one only), the level's rate of the full surface for the others.
 uint64_t levelTarget(const Options& options, const Report& report, size_t level);
+// The same for a coarser level (level > 0), from the faces of the full-resolution surface alone.
+uint64_t coarserLevelTarget(const Options& options, uint64_t facesFull, size_t level);
 
 // @throw InputError for rates that are out of (0, 1] or not strictly decreasing, or a face target
 // given with them.

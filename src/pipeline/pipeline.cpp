@@ -37,6 +37,7 @@
 #include <mutex>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include <malloc.h>
 
@@ -160,6 +161,7 @@ private:
     Levels rankSubtree(size_t l, size_t r, size_t a, size_t b);
     Levels localSubtree(size_t l, size_t r);
     void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
+    void joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
     Levels extractSlab(size_t si);
     void watch(Decimator& dec);
     void countLeafSamplers(size_t begin, size_t end);
@@ -384,54 +386,70 @@ Levels PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
 // joined at once by the thread that finishes its second child. Finished nodes waiting for a sibling
 // form one frontier (a post-order walk); splitting the threads between the two halves of every node
 // kept two frontiers open, each node on them holding its seams at full resolution. The tree's shape,
-// hence the mesh, is slabs.h's either way.
+// hence the mesh, is slabs.h's either way. A LOD chain's levels are independent meshes, so each level
+// climbs the tree on its own: a thread done with a coarse level's join takes that level on up instead
+// of waiting at every node for the finest level, whose joins are the largest. Where this subtree is the
+// whole tree, a coarser level's final pass follows its last join at once, while the finest level's top
+// joins still run (a chain without a face target: the full surface's faces are the root's).
 Levels PipelineRun::localSubtree(size_t l, size_t r)
 {
     std::mutex waitingMutex;
-    std::map<std::pair<size_t, size_t>, Levels> waiting;  // finished nodes whose sibling is not
-    Levels whole;
+    // Finished nodes of one level whose sibling (of the same level) is not: (first, end slab, level).
+    std::map<std::tuple<size_t, size_t, size_t>, std::unique_ptr<Integrator>> waiting;
+    Levels whole(std::max<size_t>(1, mOpt.lods.size()));
     size_t next = l;
     tbb::parallel_pipeline(
         std::max(1, tbb::this_task_arena::max_concurrency()),
         indices(next, r) & tbb::make_filter<size_t, void>(tbb::filter_mode::parallel, [&](size_t si) {
             Levels node = extractSlab(si);
-            size_t nl = si, nr = si + 1;
-            while (nl != l || nr != r) {
-                const auto [pl, pr] = parentNode(l, r, nl, nr);
-                const size_t pm = mergeSplit(pl, pr);
-                const bool isLeft = nl == pl;
-                Levels sibling;
-                {
-                    std::lock_guard<std::mutex> lock(waitingMutex);
-                    const auto it = waiting.find(isLeft ? std::make_pair(pm, pr) : std::make_pair(pl, pm));
-                    if (it == waiting.end()) {
-                        waiting.emplace(std::make_pair(nl, nr), std::move(node));
-                        return;
+            forEachLevel(node, [&](size_t k, Integrator&) {
+                std::unique_ptr<Integrator> mine = std::move(node[k]);
+                size_t nl = si, nr = si + 1;
+                while (nl != l || nr != r) {
+                    const auto [pl, pr] = parentNode(l, r, nl, nr);
+                    const size_t pm = mergeSplit(pl, pr);
+                    const bool isLeft = nl == pl;
+                    std::unique_ptr<Integrator> sibling;
+                    {
+                        std::lock_guard<std::mutex> lock(waitingMutex);
+                        const auto it = waiting.find(isLeft ? std::make_tuple(pm, pr, k) : std::make_tuple(pl, pm, k));
+                        if (it == waiting.end()) {
+                            waiting.emplace(std::make_tuple(nl, nr, k), std::move(mine));
+                            return;
+                        }
+                        sibling = std::move(it->second);
+                        waiting.erase(it);
                     }
-                    sibling = std::move(it->second);
-                    waiting.erase(it);
+                    if (!isLeft) std::swap(mine, sibling);  // the left one absorbs the right one
+                    const double start = mClock.seconds();
+                    joinLevel(*mine, sibling->takePiece(), pl, pr);
+                    sibling.reset();
+                    timed(pl, pr, start);
+                    nl = pl;
+                    nr = pr;
                 }
-                Levels& left = isLeft ? node : sibling;
-                Levels& right = isLeft ? sibling : node;
-                const double start = mClock.seconds();
-                join(left, takePieces(right), pl, pr);
-                timed(pl, pr, start);
-                if (!isLeft) node = std::move(left);
-                nl = pl;
-                nr = pr;
-            }
-            whole = std::move(node);
+                if (k > 0 && l == 0 && r == mSlabs.size()) {
+                    uint64_t unfinalized = 0;
+                    mine->finish(coarserLevelTarget(mOpt, mine->facesGenerated(), k), mine->facesGenerated(), unfinalized);
+                }
+                whole[k] = std::move(mine);  // one task per level: no two write the same entry
+            });
         }));
     // The run was cancelled, or failed elsewhere: no node is complete.
-    if (whole.empty() || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
+    const bool complete = std::all_of(whole.begin(), whole.end(), [](const auto& level) { return level != nullptr; });
+    if (!complete || tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     return whole;
 }
 
+// A chain's levels join one by one: a node's seconds are the sum over its levels.
 void PipelineRun::timed(size_t l, size_t r, double start)
 {
     const double seconds = mClock.seconds() - start;
     std::lock_guard<std::mutex> lock(mTreeMutex);
-    mTree.push_back({uint32_t(l), uint32_t(r), seconds});
+    const auto same = [&](const Report::TreeNode& n) { return n.firstSlab == l && n.endSlab == r; };
+    const auto it = std::find_if(mTree.rbegin(), mTree.rend(), same);
+    if (it != mTree.rend()) it->seconds += seconds;
+    else mTree.push_back({uint32_t(l), uint32_t(r), seconds});
 }
 
 // Siblings [l, m) and [m, r) join: the right one's mesh moves into the left one's, and the vertices
@@ -440,10 +458,13 @@ void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, s
 {
     if (right.size() != left.size()) throw std::runtime_error("merge tree: a node with " + std::to_string(right.size()) +
                                                               " levels joins one with " + std::to_string(left.size()));
+    forEachLevel(left, [&](size_t k, Integrator& level) { joinLevel(level, std::move(right[k]), l, r); });
+}
+
+void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
+{
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    forEachLevel(left, [&](size_t k, Integrator& level) {
-        level.absorbSlab(std::move(right[k]), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
-    });
+    left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
@@ -697,9 +718,9 @@ Result PipelineRun::finalPass()
     std::vector<uint64_t> unfinalized(mRoot.size(), 0);
     const size_t seamVertices = whole.decimator().openVertices();
     const size_t traced = slabs.trace.size();
-    // A chain's levels get their final passes at once.
+    // A chain's levels get their final passes at once (those that have not had it at the root).
     forEachLevel(mRoot, [&](size_t k, Integrator& level) {
-        level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
+        if (!level.finished()) level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
     });
     rep.unfinalizedAtEnd = unfinalized.front() - seamVertices;
     QueueWork work;
