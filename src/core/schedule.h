@@ -185,7 +185,8 @@ public:
 
     // The sibling node of the merge tree is done: its mesh joins this one, and the open vertices that
     // `closes` accepts (the seam between them, welded by key) become final and are decimated like a
-    // batch while other slabs run, instead of waiting for the serial final pass.
+    // batch while other slabs run, instead of waiting for the serial final pass. The queue is left
+    // as the pass leaves it: the caller compacts a node that goes on up the tree.
     void absorbSlab(SlabPiece&& sibling, const std::function<bool(EdgeKey)>& closes)
     {
         mDec.absorb(std::move(sibling.mesh));
@@ -193,7 +194,6 @@ public:
         mAbsorbedFaces += sibling.facesGenerated;
         mAbsorbed.add(sibling.stats);
         decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
-        mDec.compactQueue();
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }

@@ -465,6 +465,10 @@ void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_
 {
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+    // Dead entries go before a merge copies the queue or appends to it (a freed vertex slot may go to an
+    // absorbed vertex then). The root's queue only serves the final pass, which skips them as it pops:
+    // compacting 7.3M entries there took 0.45 s of the serial top of the tree (noise 448^3, R = 0.2).
+    if (l > 0 || r < mSlabs.size()) left.decimator().compactQueue();
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
