@@ -162,6 +162,7 @@ private:
     Levels localSubtree(size_t l, size_t r);
     void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
     void joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
+    bool absorbsLater(size_t l, size_t r) const;
     Levels extractSlab(size_t si);
     void watch(Decimator& dec);
     void countLeafSamplers(size_t begin, size_t end);
@@ -465,10 +466,18 @@ void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_
 {
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
-    // Dead entries go before a merge copies the queue or appends to it (a freed vertex slot may go to an
-    // absorbed vertex then). The root's queue only serves the final pass, which skips them as it pops:
-    // compacting 7.3M entries there took 0.45 s of the serial top of the tree (noise 448^3, R = 0.2).
-    if (l > 0 || r < mSlabs.size()) left.decimator().compactQueue();
+    if (absorbsLater(l, r)) left.decimator().compactQueue();
+}
+
+// Whether node [l, r) of the tree absorbs its sibling later (a left child): its queue grows by the
+// sibling's, so dead entries go first. A right child's queue is drained by its parent's take, which
+// drops them itself, and the root's only serves the final pass, which skips them as it pops:
+// compacting there (the queue reordered as a heap) took 0.45 s of the serial top of the tree on noise
+// 448^3 at R = 0.2 and 0.17 s for the root's right child. Dead entries change no collapse either way.
+bool PipelineRun::absorbsLater(size_t l, size_t r) const
+{
+    if (l == 0 && r == mSlabs.size()) return false;
+    return parentNode(0, mSlabs.size(), l, r).first == l;
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
@@ -517,8 +526,8 @@ Levels PipelineRun::extractSlab(size_t si)
     });
     if (tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     integ->finishSlab();
-    // Dead entries are dropped before the queue is copied by a merge.
-    dec.compactQueue();
+    // Dead entries are dropped before the slab absorbs its sibling or is copied for a coarser level.
+    if (absorbsLater(si, si + 1) || mOpt.lods.size() > 1) dec.compactQueue();
     Levels levels;
     levels.push_back(std::move(integ));
     // A LOD chain's coarser levels continue from the finer one here, slab by slab, in parallel with
