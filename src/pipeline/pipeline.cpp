@@ -163,6 +163,7 @@ private:
     void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
     void joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
     bool absorbsLater(size_t l, size_t r) const;
+    bool wholeTree(size_t l, size_t r) const { return l == 0 && r == mSlabs.size(); }
     Levels extractSlab(size_t si);
     void watch(Decimator& dec);
     void countLeafSamplers(size_t begin, size_t end);
@@ -429,7 +430,7 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
                     nl = pl;
                     nr = pr;
                 }
-                if (k > 0 && l == 0 && r == mSlabs.size()) {
+                if (k > 0 && wholeTree(l, r)) {
                     uint64_t unfinalized = 0;
                     mine->finish(coarserLevelTarget(mOpt, mine->facesGenerated(), k), mine->facesGenerated(), unfinalized);
                 }
@@ -476,7 +477,7 @@ void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_
 // 448^3 at R = 0.2 and 0.17 s for the root's right child. Dead entries change no collapse either way.
 bool PipelineRun::absorbsLater(size_t l, size_t r) const
 {
-    if (l == 0 && r == mSlabs.size()) return false;
+    if (wholeTree(l, r)) return false;
     return parentNode(0, mSlabs.size(), l, r).first == l;
 }
 
