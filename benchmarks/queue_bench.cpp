@@ -20,7 +20,7 @@ namespace {
 
 struct Entry {
     uint64_t key;
-    uint32_t b, stamp;
+    uint32_t b, stamp;  // 16 bytes, like the decimator's entries (QuadHeap requires it)
     bool operator<(const Entry& o) const { return key != o.key ? key < o.key : b < o.b; }
     bool operator>(const Entry& o) const { return o < *this; }
 };
@@ -51,14 +51,15 @@ int main(int argc, char** argv)
     for (size_t n : sizes) {
         double ours = 1e300, theirs = 1e300;
         uint64_t sumOurs = 0, sumTheirs = 0;
+        const auto push = [](auto& h, const Entry& e) { h.push(e); };
         for (int round = 0; round < 3; ++round) {
             {
                 vdb_isosimp::QuadHeap<Entry> q;
-                ours = std::min(ours, run(n, q, [](auto& h, const Entry& e) { h.push(e); }, [](auto& h) { return h.pop(); }, sumOurs));
+                ours = std::min(ours, run(n, q, push, [](auto& h) { return h.pop(); }, sumOurs));
             }
             {
                 std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> q;
-                theirs = std::min(theirs, run(n, q, [](auto& h, const Entry& e) { h.push(e); },
+                theirs = std::min(theirs, run(n, q, push,
                                               [](auto& h) {
                                                   const Entry e = h.top();
                                                   h.pop();

@@ -162,8 +162,7 @@ private:
             const size_t count = n - first < 4 ? n - first : 4;
             // Their children's groups start loading while these four are compared: in a queue of
             // millions (a merge near the tree's root, a final pass) every level is a cache miss, and
-            // the next level's line no longer waits for this level's choice: a pop and push take 13-28 %
-            // less time on queues of 64k to 4M entries (benchmarks/queue_bench.cpp).
+            // the next level's line no longer waits for this level's choice (docs/perf.md).
             for (size_t k = 0; k < count; ++k) {
                 const size_t grandchildren = 4 * (first + k) + 1;
                 if (grandchildren >= n) break;
