@@ -659,6 +659,7 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
         ak = ak.shifted(sub(target, gk.p));
     }
     gk.p = target;
+    if (mMoved) mMoved->push_back(keep);
     ++vk.version;
     ++vk.ring;
     const std::vector<uint32_t>& ring = mScratchA;
@@ -946,6 +947,7 @@ bool Decimator::openPinch(uint32_t f)
             if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
             ++mMeta[x].version;
             ++mMeta[x].ring;
+            if (mMoved) mMoved->push_back(x);
             return true;
         }
     }
@@ -973,31 +975,49 @@ size_t Decimator::removeDegenerateFaces()
     mZeroArea = mVertexCount ? 1e-12 * dot(diagonal, diagonal) : 0.0;
     // Faces are found by a parallel scan and visited in face order, as a serial scan would. Collapses
     // here cannot make a face degenerate in double (facesStayValid), only, rarely, after rounding to
-    // float: so the scan is repeated until a round over its finds changes nothing.
-    std::vector<uint8_t> flat;
+    // float: so the finds are looked at again until a round over them changes nothing. A face can
+    // change only at a vertex a fix moved or handed faces to (mMoved), so the next round's finds are
+    // the faces there and this round's that are still degenerate: the faces a full scan would find.
+    std::vector<uint8_t> flat(mFaces.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
+        for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive() && degenerate(f);
+    });
     std::vector<uint32_t> candidates;
+    for (uint32_t f = 0; f < flat.size(); ++f)
+        if (flat[f]) candidates.push_back(f);
+    flat = {};
+    std::vector<uint32_t> moved;
+    mMoved = &moved;
+    struct Unwatch {
+        std::vector<uint32_t>*& watch;
+        ~Unwatch() { watch = nullptr; }
+    } unwatch{mMoved};
     size_t remaining = 0;
-    for (bool rescan = true; rescan;) {
-        flat.assign(mFaces.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096),
-                          [&](const tbb::blocked_range<uint32_t>& r) {
-                              for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive() && degenerate(f);
-                          });
-        candidates.clear();
-        for (uint32_t f = 0; f < flat.size(); ++f)
-            if (flat[f]) candidates.push_back(f);
-        rescan = false;
+    while (!candidates.empty()) {
+        bool changed = false;
         for (bool progress = true; progress;) {
             progress = false;
             remaining = 0;
             for (uint32_t f : candidates) {
                 if (!mFaces[f].alive() || !degenerate(f)) continue;
                 if (collapseCheapestEdge(f, false) || dropFlatComponent(f) || collapseCheapestEdge(f, true) || openPinch(f))
-                    progress = rescan = true;
+                    progress = changed = true;
                 else
                     ++remaining;
             }
         }
+        if (!changed) break;
+        std::vector<uint32_t> next;
+        for (uint32_t f : candidates)
+            if (mFaces[f].alive() && degenerate(f)) next.push_back(f);
+        for (uint32_t v : moved)
+            if (mMeta[v].alive)
+                for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
+                    if (degenerate(c / 3)) next.push_back(c / 3);
+        std::sort(next.begin(), next.end());
+        next.erase(std::unique(next.begin(), next.end()), next.end());
+        candidates = std::move(next);
+        moved.clear();
     }
     mMinNormalCos = savedCos;
     mMaxError = savedError;

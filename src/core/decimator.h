@@ -384,6 +384,7 @@ private:
     double mAttrWeight2 = 0.0;
     ChunkedVector<AttributeQuadric> mAttrQ;  // per vertex, written around it; empty without a weight
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
+    std::vector<uint32_t>* mMoved = nullptr;  // removeDegenerateFaces: vertices whose faces a fix changed
     std::function<bool()> mStop;
     uint64_t mPolls = 0;
     uint32_t mStamp = 0;
