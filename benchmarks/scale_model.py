@@ -11,7 +11,7 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
 output face of the subtree (measured bytes per rank / faces, docs/scale.md).
-Prints a table of W -> modelled seconds and speed-up, and writes an SVG plot.
+Prints a table of W -> modelled seconds and speed-up and the critical path at 16 workers, and writes an SVG plot.
 Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
 """
 import json
@@ -20,6 +20,7 @@ import sys
 BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
 MESSAGE_BYTES_PER_FACE = 100.0  # measured at 448^3: 94-114 bytes per output face of the subtree sent (docs/scale.md)
 WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
+PATH_WORKERS = 16  # the width whose critical path is printed (the issue's target)
 
 
 def merge_split(l, r):
@@ -59,12 +60,23 @@ def model(report, wall):
         transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
         return max(parallel(l, m, a, c), parallel(m, r, c, b) + transfer) + node[(l, r)]
 
+    def path(l, r, a, b):
+        # The nodes on the critical path for ranks [a, b): the joins from the top down, then the
+        # subtree one rank makes alone.
+        if b - a < 2 or r - l < 2:
+            return [f"one rank's slabs [{l}, {r}) {serial(l, r):.2f} s"]
+        m = merge_split(l, r)
+        c = split_ranks(l, r, a, b)
+        transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
+        below = path(l, m, a, c) if parallel(l, m, a, c) >= parallel(m, r, c, b) + transfer else path(m, r, c, b)
+        return below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
+
     one = setup + count + serial(0, slabs) + final
     rows = []
     for w in WORKERS:
         t = setup + count / min(w, slabs) + parallel(0, slabs, 0, w) + final
         rows.append((w, t, one / t))
-    return setup + count, serial(0, slabs), final, rows
+    return setup + count, serial(0, slabs), final, rows, path(0, slabs, 0, PATH_WORKERS)
 
 
 def svg(curves, path):
@@ -111,12 +123,13 @@ def main(argv):
     for i in range(1, len(argv) - 1, 3):
         report = json.load(open(argv[i]))
         wall, label = float(argv[i + 1]), argv[i + 2]
-        setup, tree, final, rows = model(report, wall)
+        setup, tree, final, rows, critical = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
         print("| workers | modelled seconds | speed-up |")
         print("|---|---|---|")
         for w, t, s in rows:
             print(f"| {w} | {t:.2f} | {s:.1f}x |")
+        print(f"critical path at {PATH_WORKERS} workers: " + ", then ".join(critical))
         print()
         curves.append((label, rows))
     svg(curves, out)
