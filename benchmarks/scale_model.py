@@ -53,30 +53,23 @@ def model(report, wall):
         return serial(l, m) + serial(m, r) + node[(l, r)]
 
     def parallel(l, r, a, b):
+        # Seconds of node [l, r) on ranks [a, b), and its critical path: the subtree one rank makes
+        # alone, then the joins above it.
         if b - a < 2 or r - l < 2:
-            return serial(l, r)
+            return serial(l, r), [f"one rank's slabs [{l}, {r}) {serial(l, r):.2f} s"]
         m = merge_split(l, r)
         c = split_ranks(l, r, a, b)
         transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
-        return max(parallel(l, m, a, c), parallel(m, r, c, b) + transfer) + node[(l, r)]
-
-    def path(l, r, a, b):
-        # The nodes on the critical path for ranks [a, b): the joins from the top down, then the
-        # subtree one rank makes alone.
-        if b - a < 2 or r - l < 2:
-            return [f"one rank's slabs [{l}, {r}) {serial(l, r):.2f} s"]
-        m = merge_split(l, r)
-        c = split_ranks(l, r, a, b)
-        transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
-        below = path(l, m, a, c) if parallel(l, m, a, c) >= parallel(m, r, c, b) + transfer else path(m, r, c, b)
-        return below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
+        left, (right, right_path) = parallel(l, m, a, c), parallel(m, r, c, b)
+        seconds, below = left if left[0] >= right + transfer else (right + transfer, right_path)
+        return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
 
     one = setup + count + serial(0, slabs) + final
     rows = []
     for w in WORKERS:
-        t = setup + count / min(w, slabs) + parallel(0, slabs, 0, w) + final
+        t = setup + count / min(w, slabs) + parallel(0, slabs, 0, w)[0] + final
         rows.append((w, t, one / t))
-    return setup + count, serial(0, slabs), final, rows, path(0, slabs, 0, PATH_WORKERS)
+    return setup + count, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1]
 
 
 def svg(curves, path):
