@@ -56,12 +56,13 @@ def model(report, wall):
         # Seconds of node [l, r) on ranks [a, b), and its critical path: the subtree one rank makes
         # alone, then the joins above it.
         if b - a < 2 or r - l < 2:
-            return serial(l, r), [f"one rank's slabs [{l}, {r}) {serial(l, r):.2f} s"]
+            alone = serial(l, r)
+            return alone, [f"one rank's slabs [{l}, {r}) {alone:.2f} s"]
         m = merge_split(l, r)
         c = split_ranks(l, r, a, b)
         transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
-        left, (right, right_path) = parallel(l, m, a, c), parallel(m, r, c, b)
-        seconds, below = left if left[0] >= right + transfer else (right + transfer, right_path)
+        (left, left_path), (right, right_path) = parallel(l, m, a, c), parallel(m, r, c, b)
+        seconds, below = (left, left_path) if left >= right + transfer else (right + transfer, right_path)
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
 
     one = setup + count + serial(0, slabs) + final
