@@ -61,9 +61,9 @@ TEST_P(ErrorBound, HausdorffWithinTwiceTheBound)
 
 TEST(ErrorBoundHardContent, HausdorffWithinTwiceTheBound)
 {
-    // Flat faces and sharp edges; voxels exactly at the iso-value, whose faces without area the final
-    // pass removes under the bound too (it once collapsed them past it: 0.53 at E = 0.1 on ct-int 80³).
-    for (const char* volume : {"csg", "ct-int"}) expectHausdorffWithinTwiceTheBound(volume, 80);
+    // Flat faces and sharp edges; voxels exactly at the iso-value, whose faces without area (up to a
+    // voxel long) the final pass removes within the bound too.
+    for (const char* volume : {"csg", "ct-int"}) expectHausdorffWithinTwiceTheBound(volume, 96);
 }
 
 TEST_P(ErrorBound, WithARatioWhicheverStopsFirst)

@@ -921,8 +921,9 @@ bool Decimator::openPinch(uint32_t f)
 {
     // Where the surface touches itself at one voxel corner (values exactly at the iso-value on both
     // sides of it), no collapse keeps the mesh manifold: the link condition refuses every edge near the
-    // twins. One corner moves off the other by 1e-5 of the diagonal, along the normal of its own faces,
-    // which opens the pinch and gives the face an area without moving the surface visibly.
+    // twins. One corner moves off the other by 1e-5 of the diagonal, along the normal of its own faces
+    // or else along an axis, which opens the pinch and gives the face an area without moving the
+    // surface visibly (under an error bound the corner's drift counts the step).
     const double step = 1e-5 * std::sqrt(mZeroArea / 1e-12);
     for (int k = 0; k < 3; ++k) {
         const uint32_t x = mFaces[f].v[k];
@@ -933,10 +934,19 @@ bool Decimator::openPinch(uint32_t f)
             for (int i = 0; i < 3; ++i) normal[i] += n[i];
         }
         const double len = std::sqrt(dot(normal, normal));
-        if (!(len > 0)) continue;
-        for (double sign : {1.0, -1.0}) {
+        // The normal first; where the corner's faces lie on both sheets of the pinch, moving along
+        // their summed normal can fold one of them, and a move along an axis may not.
+        std::vector<V3> directions;
+        if (len > 0) directions = {{normal[0] / len, normal[1] / len, normal[2] / len}, {-normal[0] / len, -normal[1] / len, -normal[2] / len}};
+        for (int axis = 0; axis < 3; ++axis)
+            for (double sign : {1.0, -1.0}) {
+                V3 d{0, 0, 0};
+                d[size_t(axis)] = sign;
+                directions.push_back(d);
+            }
+        for (const V3& d : directions) {
             const V3 old = mGeom[x].p;
-            const V3 p{old[0] + sign * step * normal[0] / len, old[1] + sign * step * normal[1] / len, old[2] + sign * step * normal[2] / len};
+            const V3 p{old[0] + step * d[0], old[1] + step * d[1], old[2] + step * d[2]};
             if (!facesStayValid(x, kNone, p)) continue;
             mGeom[x].p = p;
             if (degenerate(f)) {
@@ -945,6 +955,7 @@ bool Decimator::openPinch(uint32_t f)
             }
             mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
             if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
+            if (mMaxError < HUGE_VAL) mDrift[x] += float(step);
             ++mMeta[x].version;
             ++mMeta[x].ring;
             if (mMoved) mMoved->push_back(x);
