@@ -1,8 +1,9 @@
 // The error bound (--max-error E) end to end: for three values of E on a level-set sphere, a noise
 // fog, CSG of boxes and cylinders (flat faces, sharp edges) and an integer CT volume (voxels exactly
-// at the iso-value), the symmetric Hausdorff distance from the full-resolution (R = 1) surface,
-// measured by mesh_error, stays within 2E; a smaller E keeps more faces; the report's max_error_accepted is at
-// most E; with a ratio, whichever stops first wins; E <= 0 is a usage error.
+// at the iso-value), 96 voxels across, the symmetric Hausdorff distance from the full-resolution
+// (R = 1) surface, measured by mesh_error, stays within 2E; a smaller E keeps more faces; the
+// report's max_error_accepted is at most E; with a ratio, whichever stops first wins; E <= 0 is a
+// usage error.
 #include "tool_runs.h"
 
 #include <gtest/gtest.h>
@@ -34,11 +35,11 @@ Bounded runBounded(const std::string& dir, const std::string& volume, const std:
     return {jsonNumber(report, "faces_out"), jsonNumber(err.out, "hausdorff"), jsonNumber(report, "max_error_accepted")};
 }
 
-void expectHausdorffWithinTwiceTheBound(const std::string& volume, int size)
+void expectHausdorffWithinTwiceTheBound(const std::string& volume)
 {
     const ScratchDir scratch;
     const std::string dir = scratch.path;
-    ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + volume + " -n " + std::to_string(size) + " -o " + volume + ".vdb").code, 0);
+    ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + volume + " -n 96 -o " + volume + ".vdb").code, 0);
     ASSERT_EQ(runTool(dir, q(VDB_ISOSIMP_EXE) + " " + volume + ".vdb -q -r 1 -o " + volume + "_full.ply").code, 0);
     double previousFaces = HUGE_VAL;
     for (const double e : {0.05, 0.1, 0.3}) {
@@ -56,14 +57,14 @@ void expectHausdorffWithinTwiceTheBound(const std::string& volume, int size)
 
 TEST_P(ErrorBound, HausdorffWithinTwiceTheBound)
 {
-    expectHausdorffWithinTwiceTheBound(GetParam(), 96);
+    expectHausdorffWithinTwiceTheBound(GetParam());
 }
 
 TEST(ErrorBoundHardContent, HausdorffWithinTwiceTheBound)
 {
     // Flat faces and sharp edges; voxels exactly at the iso-value, whose faces without area (up to a
     // voxel long) the final pass removes within the bound too.
-    for (const char* volume : {"csg", "ct-int"}) expectHausdorffWithinTwiceTheBound(volume, 96);
+    for (const char* volume : {"csg", "ct-int"}) expectHausdorffWithinTwiceTheBound(volume);
 }
 
 TEST_P(ErrorBound, WithARatioWhicheverStopsFirst)
