@@ -11,6 +11,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
 #include <openvdb/tools/Prune.h>
+#include <openvdb/tools/ValueTransformer.h>
 #include <openvdb/math/Maps.h>
 
 #include <tbb/blocked_range.h>
@@ -113,7 +114,9 @@ int main(int argc, char** argv)
     app.add_option("-o,--output", output, "Output .vdb file")->required();
     app.add_option("-n,--size", size, "Volume size in voxels per axis")->default_val(size)->check(CLI::Range(8, 4096));
     app.add_option("--seed", seed, "Noise seed")->default_val(seed);
-    app.add_option("--voxel", voxel, "Voxel size in world units")->default_val(voxel);
+    app.add_option("--voxel", voxel, "Voxel size in world units (hard surfaces: a scale on their own transform)")
+        ->default_val(voxel)
+        ->check(CLI::PositiveNumber);
     app.add_option("--period", period, "Gyroid period in voxels (gyroid, gyroid-band)")
         ->default_val(period)
         ->check(CLI::Range(4.0, 1e6));
@@ -125,7 +128,19 @@ int main(int argc, char** argv)
     const double n = size;
     const auto& named = vdb_isosimp::volumes::volumeNames();
     if (std::find(named.begin(), named.end(), kind) != named.end()) {
-        out = vdb_isosimp::volumes::makeVolume(kind, size, rotated).grid;
+        openvdb::FloatGrid::Ptr g = vdb_isosimp::volumes::makeVolume(kind, size, rotated).grid;
+        if (voxel != 1.0) {
+            // The same voxels under a scaled transform; a level set's values are world distances, so
+            // they scale with it, a fog's densities do not.
+            g->transform().preScale(voxel);
+            if (g->getGridClass() == openvdb::GRID_LEVEL_SET) {
+                openvdb::tools::foreach(g->beginValueAll(), [voxel](const openvdb::FloatGrid::ValueAllIter& it) {
+                    it.setValue(float(double(*it) * voxel));
+                });
+                g->tree().root().setBackground(float(double(g->background()) * voxel), /*updateChildNodes=*/true);
+            }
+        }
+        out = g;
     } else if (kind == "sphere") {
         auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(float(0.4 * n * voxel),
                                                                           openvdb::Vec3f(float(0.5 * n * voxel)), float(voxel));

@@ -67,6 +67,32 @@ TEST(ErrorBoundHardContent, HausdorffWithinTwiceTheBound)
     for (const char* volume : {"csg", "ct-int"}) expectHausdorffWithinTwiceTheBound(volume);
 }
 
+TEST(ErrorBoundHardContent, SameAtAHoudiniVoxelSize)
+{
+    // Houdini and Blender write voxels of 0.1 world units and less: the same voxels at 0.1 with E in
+    // the same voxels stop at the same faces, within 2E.
+    const ScratchDir scratch;
+    const std::string dir = scratch.path;
+    double faces[2][2];
+    for (int scaled = 0; scaled < 2; ++scaled) {
+        const double voxel = scaled ? 0.1 : 1.0;
+        const std::string volume = scaled ? "small" : "unit";
+        ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " ct-int -n 96 --voxel " + std::to_string(voxel) + " -o " + volume + ".vdb").code, 0);
+        ASSERT_EQ(runTool(dir, q(VDB_ISOSIMP_EXE) + " " + volume + ".vdb -q -r 1 -o " + volume + "_full.ply").code, 0);
+        const double es[2] = {0.05 * voxel, 0.3 * voxel};
+        for (int i = 0; i < 2; ++i) {
+            char arg[64];
+            std::snprintf(arg, sizeof arg, "--max-error %g", es[i]);
+            const Bounded b = runBounded(dir, volume, arg);
+            std::printf("ct-int, voxel %g, --max-error %g: %.0f faces, Hausdorff %.2f E\n", voxel, es[i], b.faces, b.hausdorff / es[i]);
+            EXPECT_LE(b.hausdorff, 2 * es[i]) << "voxel " << voxel << " E = " << es[i];
+            EXPECT_LE(b.accepted, es[i]);
+            faces[scaled][i] = b.faces;
+        }
+    }
+    for (int i = 0; i < 2; ++i) EXPECT_NEAR(faces[1][i], faces[0][i], 0.01 * faces[0][i]);
+}
+
 TEST_P(ErrorBound, WithARatioWhicheverStopsFirst)
 {
     const ScratchDir scratch;
