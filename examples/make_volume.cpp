@@ -137,7 +137,8 @@ int main(int argc, char** argv)
                 openvdb::tools::foreach(g->beginValueAll(), [voxel](const openvdb::FloatGrid::ValueAllIter& it) {
                     it.setValue(float(double(*it) * voxel));
                 });
-                g->tree().root().setBackground(float(double(g->background()) * voxel), /*updateChildNodes=*/true);
+                // Every tile and voxel, active or not, is scaled above: only the root's own value is left.
+                g->tree().root().setBackground(float(double(g->background()) * voxel), /*updateChildNodes=*/false);
             }
         }
         out = g;

@@ -936,30 +936,27 @@ bool Decimator::openPinch(uint32_t f)
         const double len = std::sqrt(dot(normal, normal));
         // The normal first; where the corner's faces lie on both sheets of the pinch, moving along
         // their summed normal can fold one of them, and a move along an axis may not.
-        std::vector<V3> directions;
-        if (len > 0) directions = {{normal[0] / len, normal[1] / len, normal[2] / len}, {-normal[0] / len, -normal[1] / len, -normal[2] / len}};
-        for (int axis = 0; axis < 3; ++axis)
+        const V3 directions[4] = {len > 0 ? V3{normal[0] / len, normal[1] / len, normal[2] / len} : V3{0, 0, 0},
+                                  {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        for (int i = len > 0 ? 0 : 1; i < 4; ++i) {
             for (double sign : {1.0, -1.0}) {
-                V3 d{0, 0, 0};
-                d[size_t(axis)] = sign;
-                directions.push_back(d);
+                const V3& d = directions[i];
+                const V3 old = mGeom[x].p;
+                const V3 p{old[0] + sign * step * d[0], old[1] + sign * step * d[1], old[2] + sign * step * d[2]};
+                if (!facesStayValid(x, kNone, p)) continue;
+                mGeom[x].p = p;
+                if (degenerate(f)) {
+                    mGeom[x].p = old;
+                    continue;
+                }
+                mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
+                if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
+                if (mMaxError < HUGE_VAL) mDrift[x] += float(step);
+                ++mMeta[x].version;
+                ++mMeta[x].ring;
+                if (mMoved) mMoved->push_back(x);
+                return true;
             }
-        for (const V3& d : directions) {
-            const V3 old = mGeom[x].p;
-            const V3 p{old[0] + step * d[0], old[1] + step * d[1], old[2] + step * d[2]};
-            if (!facesStayValid(x, kNone, p)) continue;
-            mGeom[x].p = p;
-            if (degenerate(f)) {
-                mGeom[x].p = old;
-                continue;
-            }
-            mGeom[x].q = mGeom[x].q.shifted(sub(p, old));
-            if (mAttrWeight2 > 0) mAttrQ[x] = mAttrQ[x].shifted(sub(p, old));
-            if (mMaxError < HUGE_VAL) mDrift[x] += float(step);
-            ++mMeta[x].version;
-            ++mMeta[x].ring;
-            if (mMoved) mMoved->push_back(x);
-            return true;
         }
     }
     return false;
@@ -1034,7 +1031,7 @@ size_t Decimator::removeDegenerateFaces()
         }
     };
     settle();
-    if (remaining > 0 && mMaxError < HUGE_VAL) {
+    if (!candidates.empty() && mMaxError < HUGE_VAL) {
         // What no fix within the bound removes (twins on a voxel corner that every collapse near them
         // would move too far, where the pinch does not open) goes past it: a face without area is a
         // defect of the mesh, and the report's largest accepted error says how far past.
