@@ -17,21 +17,24 @@ struct Entry {
     bool operator<(const Entry& o) const { return key != o.key ? key < o.key : id < o.id; }
 };
 
+// Pops the heap and the reference (sorted here, descending: the smallest at the back) and checks that
+// both give the same entry; top() is what the next pop returns, also right after unordered appends.
+void popBoth(QuadHeap<Entry>& heap, std::vector<Entry>& reference)
+{
+    std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
+    const Entry top = heap.top();
+    const Entry got = heap.pop();
+    ASSERT_EQ(top.id, got.id);
+    ASSERT_EQ(got.key, reference.back().key);
+    ASSERT_EQ(got.id, reference.back().id);
+    reference.pop_back();
+}
+
 TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
 {
     std::mt19937_64 rng(7);
     QuadHeap<Entry> heap;
-    std::vector<Entry> reference;  // kept sorted descending: the smallest at the back
-    auto popBoth = [&] {
-        std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
-        // top() is what the next pop returns, also right after unordered appends.
-        const Entry top = heap.top();
-        const Entry got = heap.pop();
-        ASSERT_EQ(top.id, got.id);
-        ASSERT_EQ(got.key, reference.back().key);
-        ASSERT_EQ(got.id, reference.back().id);
-        reference.pop_back();
-    };
+    std::vector<Entry> reference;
     uint32_t id = 0;
     for (int round = 0; round < 20; ++round) {
         for (int i = 0; i < 500; ++i) {
@@ -46,10 +49,55 @@ TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
                             reference.end());
         }
         ASSERT_EQ(heap.size(), reference.size());
-        for (int i = 0; i < 200; ++i) popBoth();
+        for (int i = 0; i < 200; ++i) popBoth(heap, reference);
     }
-    while (!heap.empty()) popBoth();
+    while (!heap.empty()) popBoth(heap, reference);
     EXPECT_TRUE(reference.empty());
+}
+
+TEST(QuadHeap, ColdEntriesComeBackInOrder)
+{
+    // coolFrom moves the entries not below a bar out of the heap; pops, pushes, appends, erasures, a
+    // copy and a drain must see one queue all the same, whether the bar is below, at or above the top.
+    std::mt19937_64 rng(13);
+    QuadHeap<Entry> heap;
+    std::vector<Entry> reference;
+    uint32_t id = 0;
+    for (int round = 0; round < 30; ++round) {
+        for (int i = 0; i < 400; ++i) {
+            const Entry e{rng() % 2000, id++, 0};
+            if (round % 4 == 1) heap.append(e);
+            else heap.push(e);
+            reference.push_back(e);
+        }
+        if (!heap.empty()) {
+            const uint64_t top = heap.top().key;
+            const uint64_t bars[] = {top, top + 1, top + 300, top > 50 ? top - 50 : 0, rng() % 2000};
+            heap.coolFrom(Entry{bars[round % 5], 0, 0});
+        }
+        ASSERT_EQ(heap.size(), reference.size());
+        if (round % 7 == 6) {
+            heap.eraseIf([](const Entry& e) { return e.id % 5 == 0; });
+            reference.erase(std::remove_if(reference.begin(), reference.end(), [](const Entry& e) { return e.id % 5 == 0; }),
+                            reference.end());
+            ASSERT_EQ(heap.size(), reference.size());
+        }
+        if (round % 10 == 9) {
+            // A copy (a LOD chain's coarser level) pops the same sequence as the original.
+            QuadHeap<Entry> copy(heap);
+            std::vector<Entry> copyReference = reference;
+            for (int i = 0; i < 300 && !copy.empty(); ++i) popBoth(copy, copyReference);
+        }
+        for (int i = 0; i < 250 && !heap.empty(); ++i) popBoth(heap, reference);
+    }
+    // A drain (a merge's piece) hands over every entry, cold ones included, once.
+    std::vector<uint32_t> drained, expected;
+    heap.drain([&](const Entry& e) { drained.push_back(e.id); });
+    for (const Entry& e : reference) expected.push_back(e.id);
+    std::sort(drained.begin(), drained.end());
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(drained, expected);
+    EXPECT_TRUE(heap.empty());
 }
 
 TEST(QuadHeap, GrowsAndShrinksAcrossChunks)

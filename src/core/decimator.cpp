@@ -837,6 +837,14 @@ size_t Decimator::decimateTo(size_t targetFaces)
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
     if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
+    // The next pass goes on from about this pass's last cost: entries from the next power of two above
+    // it (1-2 times it) wait outside the heap until it runs out of cheaper ones (QuadHeap::coolFrom), so
+    // a merge near the root pops from a heap of its seam's entries, not of every edge of the subtree.
+    // Non-negative float costs order like their bits: the bar is the next exponent, mantissa zero.
+    if (mHeap.size() > kCoolAboveEntries) {
+        const uint32_t exponent = mHeap.top().costBits() >> 23;
+        if (exponent + 1 < 255) mHeap.coolFrom(Candidate::make((exponent + 1) << 23, 0, 0, 0));
+    }
     return collapses;
 }
 

@@ -337,6 +337,7 @@ private:
     bool mSealed = false;
     void unseal();
     QuadHeap<Candidate> mHeap;
+    static constexpr size_t kCoolAboveEntries = 4096;  // smaller queues stay whole
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
     // the sum of both ends' ring counters at refusal (its low 31 bits: the record stays 12 bytes, and
     // there can be hundreds of thousands at a merge), so a collapse that cannot succeed (a closed

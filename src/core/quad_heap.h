@@ -9,6 +9,8 @@
 #include <new>
 #include <vector>
 
+#include "core/chunked_vector.h"
+
 namespace vdb_isosimp {
 
 // T: 16 bytes, with a strict total order `operator<` (the smallest is popped first). Entries may also
@@ -36,7 +38,7 @@ public:
     QuadHeap(QuadHeap&&) noexcept = default;
     QuadHeap& operator=(QuadHeap&&) noexcept = default;
     // A deep copy: a LOD chain's coarser level starts from a copy of its slab's decimator.
-    QuadHeap(const QuadHeap& o) : mEnd(o.mEnd), mUnordered(o.mUnordered)
+    QuadHeap(const QuadHeap& o) : mEnd(o.mEnd), mUnordered(o.mUnordered), mCold(o.mCold), mColdFrom(o.mColdFrom), mHasCold(o.mHasCold)
     {
         for (size_t c = 0; c < o.mChunks.size(); ++c) {
             mChunks.push_back(newChunk());
@@ -50,23 +52,29 @@ public:
         return *this = std::move(copy);
     }
 
-    size_t size() const { return mEnd - kPad; }
+    size_t size() const { return hot() + mCold.size(); }
     bool empty() const { return size() == 0; }
     // Frees the chunks past the entries.
     void shrinkToFit()
     {
         const size_t used = (mEnd + kChunk - 1) >> kShift;
         if (mChunks.size() > used) mChunks.resize(used);
+        mCold.truncate(mCold.size());
     }
     void clear()
     {
         mEnd = kPad;
         mUnordered = false;
+        mCold.clear();
+        mHasCold = false;
     }
-    // Logical entry i (i < size()), in no particular order unless the heap is ordered.
+
+    // Entry i of the heap proper (i < size() while nothing is cold), in no particular order unless the
+    // heap is ordered.
     const T& entry(size_t i) const { return slot(i + kPad); }
 
-    // Calls f on every entry in array order, freeing the storage as it goes; the heap is left empty.
+    // Calls f on every entry (the ordered part in array order, then the cold ones in the order they
+    // went cold), freeing the storage as it goes; the heap is left empty.
     template <typename F>
     void drain(F f)
     {
@@ -74,21 +82,51 @@ public:
             f(slot(p));
             if (((p + 1) & (kChunk - 1)) == 0) mChunks[p >> kShift].reset();
         }
+        for (size_t i = 0; i < mCold.size(); ++i) {
+            f(mCold[i]);
+            mCold.releaseThrough(i);
+        }
         mChunks.clear();
         clear();
     }
 
+    // Entries not below `from` wait unordered, outside the heap, until the heap holds nothing smaller
+    // (then all of them come back at once): pops and pushes walk a heap of the entries a pass is
+    // likely to reach, not of every queued one. The order of pops is the same. With entries already
+    // waiting, `from` only ever lowers the bar (raising it would put waiting entries below it).
+    void coolFrom(const T& from)
+    {
+        if (mHasCold && mColdFrom < from) return;
+        mColdFrom = from;
+        mHasCold = true;
+        size_t kept = kPad;
+        for (size_t p = kPad; p < mEnd; ++p) {
+            if (slot(p) < from) slot(kept++) = slot(p);
+            else mCold.emplace_back() = slot(p);
+        }
+        mEnd = kept;
+        mUnordered = true;
+    }
+
     void append(const T& x)
     {
+        if (goesCold(x)) {
+            mCold.emplace_back() = x;
+            return;
+        }
         pushBack(x);
         mUnordered = true;
     }
 
     void push(const T& x)
     {
+        if (goesCold(x)) {
+            mCold.emplace_back() = x;
+            return;
+        }
         order();
         pushBack(x);
-        size_t i = size() - 1;
+        size_t i = hot() - 1;
         while (i > 0) {
             const size_t parent = (i - 1) / 4;
             if (!(x < at(parent))) break;
@@ -101,19 +139,19 @@ public:
     // The smallest entry. Not empty.
     const T& top()
     {
-        order();
+        ready();
         return at(0);
     }
 
     // Removes and returns the smallest entry. Not empty.
     T pop()
     {
-        order();
+        ready();
         const T top = at(0);
         at(0) = slot(--mEnd);
         // Keeps one spare chunk, so pushes and pops at a chunk boundary do not allocate each time.
         if (mChunks.size() > ((mEnd + kChunk - 1) >> kShift) + 1) mChunks.pop_back();
-        if (!empty()) siftDown(0);
+        if (hot() > 0) siftDown(0);
         return top;
     }
 
@@ -125,12 +163,33 @@ public:
         for (size_t p = kPad; p < mEnd; ++p)
             if (!remove(slot(p))) slot(kept++) = slot(p);
         mEnd = kept;
+        size_t cold = 0;
+        for (size_t i = 0; i < mCold.size(); ++i)
+            if (!remove(mCold[i])) mCold[cold++] = mCold[i];
+        mCold.truncate(cold);
         shrinkToFit();
         mUnordered = true;
         order();
     }
 
 private:
+    size_t hot() const { return mEnd - kPad; }
+    bool goesCold(const T& x) const { return mHasCold && !(x < mColdFrom); }
+    // Ordered, with the smallest entry on top: the cold entries come back when none below them is left.
+    void ready()
+    {
+        order();
+        if (!mHasCold || (hot() > 0 && at(0) < mColdFrom)) return;
+        for (size_t i = 0; i < mCold.size(); ++i) {
+            pushBack(mCold[i]);
+            mCold.releaseThrough(i);
+        }
+        mCold = {};
+        mHasCold = false;
+        mUnordered = true;
+        order();
+    }
+
     T& slot(size_t p) { return mChunks[p >> kShift][p & (kChunk - 1)]; }
     const T& slot(size_t p) const { return mChunks[p >> kShift][p & (kChunk - 1)]; }
     T& at(size_t i) { return slot(i + kPad); }
@@ -144,15 +203,15 @@ private:
     void order()
     {
         if (!mUnordered) return;
-        for (size_t i = size() / 4 + 1; i-- > 0;)
-            if (i < size()) siftDown(i);
+        for (size_t i = hot() / 4 + 1; i-- > 0;)
+            if (i < hot()) siftDown(i);
         mUnordered = false;
     }
 
     void siftDown(size_t i)
     {
         const T x = at(i);
-        const size_t n = size();
+        const size_t n = hot();
         T* hole = &at(i);
         for (;;) {
             const size_t first = 4 * i + 1;
@@ -182,6 +241,9 @@ private:
     std::vector<Chunk> mChunks;
     size_t mEnd = kPad;
     bool mUnordered = false;
+    ChunkedVector<T> mCold;  // entries not below mColdFrom, while mHasCold (coolFrom)
+    T mColdFrom{};
+    bool mHasCold = false;
 };
 
 } // namespace vdb_isosimp
