@@ -30,6 +30,19 @@ void popBoth(QuadHeap<Entry>& heap, std::vector<Entry>& reference)
     reference.pop_back();
 }
 
+// Adds `count` entries with keys below `keys` (many equal: the id breaks ties) to the heap, pushed or
+// appended, and to the reference.
+void addBoth(QuadHeap<Entry>& heap, std::vector<Entry>& reference, std::mt19937_64& rng, uint32_t& id, int count,
+             uint64_t keys, bool append)
+{
+    for (int i = 0; i < count; ++i) {
+        const Entry e{rng() % keys, id++, 0};
+        if (append) heap.append(e);
+        else heap.push(e);
+        reference.push_back(e);
+    }
+}
+
 TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
 {
     std::mt19937_64 rng(7);
@@ -37,12 +50,7 @@ TEST(QuadHeap, PopsInOrderWithPushesAppendsAndErasesMixed)
     std::vector<Entry> reference;
     uint32_t id = 0;
     for (int round = 0; round < 20; ++round) {
-        for (int i = 0; i < 500; ++i) {
-            const Entry e{rng() % 1000, id++, 0};  // many equal keys: the id breaks ties
-            if (round % 3 == 1) heap.append(e);
-            else heap.push(e);
-            reference.push_back(e);
-        }
+        addBoth(heap, reference, rng, id, 500, 1000, round % 3 == 1);
         if (round % 5 == 4) {
             heap.eraseIf([](const Entry& e) { return e.id % 3 == 0; });
             reference.erase(std::remove_if(reference.begin(), reference.end(), [](const Entry& e) { return e.id % 3 == 0; }),
@@ -64,12 +72,7 @@ TEST(QuadHeap, ColdEntriesComeBackInOrder)
     std::vector<Entry> reference;
     uint32_t id = 0;
     for (int round = 0; round < 30; ++round) {
-        for (int i = 0; i < 400; ++i) {
-            const Entry e{rng() % 2000, id++, 0};
-            if (round % 4 == 1) heap.append(e);
-            else heap.push(e);
-            reference.push_back(e);
-        }
+        addBoth(heap, reference, rng, id, 400, 2000, round % 4 == 1);
         if (!heap.empty()) {
             const uint64_t top = heap.top().key;
             const uint64_t bars[] = {top, top + 1, top + 300, top > 50 ? top - 50 : 0, rng() % 2000};
@@ -109,11 +112,7 @@ TEST(QuadHeap, GrowsAndShrinksAcrossChunks)
     std::vector<Entry> reference;
     uint32_t id = 0;
     for (int cycle = 0; cycle < 2; ++cycle) {
-        for (int i = 0; i < 70000; ++i) {
-            const Entry e{rng() % 100000, id++, 0};
-            heap.push(e);
-            reference.push_back(e);
-        }
+        addBoth(heap, reference, rng, id, 70000, 100000, false);
         std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
         for (int i = 0; i < 60000; ++i) {
             const Entry got = heap.pop();

@@ -104,8 +104,9 @@ public:
             if (slot(p) < from) slot(kept++) = slot(p);
             else mCold.emplace_back() = slot(p);
         }
+        // Nothing moved (the bar was above every entry): the heap is as ordered as before.
+        if (kept != mEnd) mUnordered = true;
         mEnd = kept;
-        mUnordered = true;
     }
 
     void append(const T& x)
