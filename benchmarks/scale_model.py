@@ -11,7 +11,9 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
 output face of the subtree (measured bytes per rank / faces, docs/scale.md).
-Prints a table of W -> modelled seconds and speed-up and the critical path at 16 workers, and writes an SVG plot.
+Prints a table of W -> modelled seconds and speed-up and the critical path at 16 workers, the speed-up
+if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count), and writes
+an SVG plot.
 Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
 """
 import json
@@ -35,12 +37,17 @@ def split_ranks(l, r, a, b):
     return a + left
 
 
-def model(report, wall):
+def model(report, wall, even=False):
     first = report["tree_first_slab"]
     end = report["tree_end_slab"]
     secs = report["tree_seconds"]
     node = {(int(f), int(e)): s for f, e, s in zip(first, end, secs)}
     slabs = int(report["slabs"])
+    if even:
+        # What slabs of equal work would give: every slab takes the mean of the measured slabs.
+        mean = sum(node[(l, l + 1)] for l in range(slabs)) / slabs
+        for l in range(slabs):
+            node[(l, l + 1)] = mean
     faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
     count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
@@ -124,6 +131,9 @@ def main(argv):
         for w, t, s in rows:
             print(f"| {w} | {t:.2f} | {s:.1f}x |")
         print(f"critical path at {PATH_WORKERS} workers: " + ", then ".join(critical))
+        even = {w: x for w, _, x in model(report, wall, even=True)[3]}
+        print("slabs of equal work instead (each the mean of the measured slabs): " +
+              ", ".join(f"{w} workers {even[w]:.1f}x" for w in (8, 16, 32, 64)))
         print()
         curves.append((label, rows))
     svg(curves, out)
