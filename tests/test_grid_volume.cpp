@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cstring>
 #include <filesystem>
+#include <set>
 
 namespace vi = vdb_isosimp;
 namespace vt = vdb_isosimp::testing;
@@ -184,6 +185,48 @@ TEST(FileVolume, AParkedLeafReadsTheSameVoxelsAgain)
     EXPECT_EQ(reread.values, first.values);
     for (const auto& l : leavesOf(a)) vol->parkLeaf(l);
     EXPECT_EQ(vol->parkedLeaves(), stored);
+}
+
+TEST(FileVolume, ACopyReaderReadsTheVoxelsAndLeavesTheVolumeOnDisk)
+{
+    // A face target's count reads every block through a copy reader, then extraction runs on the same
+    // volume: the reader must give the grid's voxels and leave the volume's own leaves unread. A read
+    // that loads a leaf with the reloadable mark lets parkLeaf park it; a leaf already in memory
+    // (loaded by the count) is never parked.
+    const FileVolume f = fileVolume(11, "copies");
+    const auto& vol = f.volume;
+    const auto inMemory = vi::Volume::fromGrid(f.grid, "in-memory grid");
+    vi::Classifier c;
+    c.insideBelow = vol->info().levelSet;
+    c.iso = 0.0;
+    const auto blocks = vol->blocks(c);
+    ASSERT_FALSE(blocks.empty());
+    std::set<std::array<int32_t, 3>> stored;
+    for (const auto& o : blocks)
+        for (int d = 0; d < 8; ++d) {
+            const auto l = vi::sampledLeaf(o, d);
+            if (f.grid->tree().probeConstLeaf(openvdb::Coord(l[0], l[1], l[2]))) stored.insert(l);
+        }
+    ASSERT_GT(stored.size(), 10u);
+    vi::BlockSamples a, b;
+    for (int pass = 0; pass < 2; ++pass) {
+        // Twice: the second reader after the first one's copies are gone (their pool slots reused
+        // within a reader, released in block order as the count releases them).
+        const auto copies = vol->copyReader();
+        for (const auto& o : blocks) {
+            copies->sample(o, a);
+            inMemory->sample(o, b);
+            ASSERT_EQ(a.values, b.values);
+            if (pass == 0) copies->release(o);
+        }
+    }
+    for (const auto& o : blocks) {
+        vol->sample(o, a, 0xff);
+        inMemory->sample(o, b);
+        ASSERT_EQ(a.values, b.values);
+    }
+    for (const auto& l : stored) vol->parkLeaf(l);
+    EXPECT_EQ(vol->parkedLeaves(), stored.size());
 }
 
 TEST(FileVolume, ParkingLeavesBetweenBandsKeepsTheMesh)

@@ -7,6 +7,7 @@
 #include "surface_checks.h"
 #include "test_grids.h"
 #include "test_volumes.h"
+#include "pipeline/pipeline_internal.h"
 #include "vdb/block_order.h"
 #include "vdb_isosimp/errors.h"
 #include "vdb_isosimp/vdb_isosimp.h"
@@ -313,6 +314,30 @@ TEST(Pipeline, FaceCountReportsProgressAndCancels)
     EXPECT_THROW(simplifyFile(noiseFile(), target, &only), Cancelled);
     ASSERT_EQ(only.fractions.size(), 1u);
     EXPECT_EQ(only.fractions.front(), 0.0);
+}
+
+TEST(Pipeline, AFaceTargetCountsOnTheVolumeItExtracts)
+{
+    // The count reads copies of the leaves and extraction follows on the same volume: one open (a
+    // second one would read the topology again, on every MPI rank), the count equal to the faces
+    // extraction makes, and the mesh of a run at the rate the count gives.
+    const std::string path = noiseFile();
+    int opens = 0;
+    Options o;
+    o.targetFaces = 20000;
+    const Result counted = simplifyVolume(
+        [&] {
+            ++opens;
+            return Volume::open(path, "");
+        },
+        path, o, nullptr);
+    EXPECT_EQ(opens, 1);
+    Options r = ratioOptions(double(o.targetFaces) / double(counted.report.facesFull));
+    const Result rated = simplifyFile(path, r);
+    EXPECT_EQ(counted.report.facesFull, rated.report.facesFull);
+    EXPECT_EQ(counted.mesh.triangles, rated.mesh.triangles);
+    EXPECT_EQ(counted.mesh.points, rated.mesh.points);
+    EXPECT_NEAR(double(counted.mesh.triangles.size()), double(o.targetFaces), 0.01 * double(o.targetFaces));
 }
 
 TEST(Pipeline, SameOutputForAnyThreadCount)

@@ -86,13 +86,14 @@ tbb::filter<void, size_t> indices(size_t& next, size_t end)
 // Progress is reported once per this many blocks, extracted or counted.
 constexpr size_t kProgressEveryBlocks = 256;
 
-// Exact face count of the full-resolution surface: the same case table over the same blocks. It runs
-// on its own delayed-loading copy of the grid and frees each leaf once its last block is counted
-// (blocks in order, as in extraction), so counting does not load the whole volume at once. The blocks
+// Exact face count of the full-resolution surface: the same case table over the same blocks. It reads
+// copies of the leaves (Volume::CopyReader), so the volume stays as opened for extraction, and frees
+// each copy once its last block is counted (blocks in order, as in extraction), so counting does not
+// load the whole volume at once. The blocks
 // go to the threads in runs of consecutive ones: a block alone is too little work to hand on, and two
 // threads on consecutive blocks keep meeting on the load lock of the leaf they share. `counted` hears
 // the fraction of blocks counted, in order; false from it cancels.
-uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls,
+uint64_t countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls,
                     const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = 64;
@@ -104,12 +105,13 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
         const size_t first = begin + run * kRun;
         return std::make_pair(first, std::min(end, first + kRun));
     };
+    const std::unique_ptr<Volume::CopyReader> copies = vol.copyReader();
     const auto count = [&](size_t run) {
         const auto [first, last] = runBlocks(run);
         uint64_t faces = 0;
         BlockSamples s;
         for (size_t i = first; i < last; ++i) {
-            vol.sample(blocks[i], s);
+            copies->sample(blocks[i], s);
             faces += countBlockTriangles(s, cls);
             // The pages a run's leaf reads fault in (64 KB around each) would otherwise stay until the
             // run is added, with several runs in flight: the count would be the peak of a run kept to
@@ -122,7 +124,7 @@ uint64_t countFaces(Volume& vol, const std::vector<BlockOrigin>& blocks, size_t 
     const auto add = [&](std::pair<size_t, uint64_t> run) {
         total += run.second;
         const auto [first, last] = runBlocks(run.first);
-        for (size_t i = first; i < last; ++i) vol.releaseLeaf(blocks[i]);
+        for (size_t i = first; i < last; ++i) copies->release(blocks[i]);
         vol.trimInputMapping();
         static_assert(kProgressEveryBlocks % kRun == 0, "the count reports after whole runs");
         constexpr size_t kReportEveryRuns = kProgressEveryBlocks / kRun;
@@ -150,7 +152,7 @@ public:
     void chooseIso();
     void listBlocks();
     void splitSlabs();
-    void countFacesForTarget(const VolumeOpener& open);
+    void countFacesForTarget();
     void agreeAmongRanks(const std::string& error);
     void setTarget();
     bool runTree();
@@ -187,7 +189,7 @@ private:
     Result mResult;
     std::unique_ptr<Volume> mVol;
     std::unique_ptr<AttributeSampler> mAttributes;  // Options::attributes, checked at open
-    VolumeInfo mInfo;  // a copy: the volume is opened again after counting
+    VolumeInfo mInfo;
     Classifier mCls;
     bool mFlip = false;
     std::vector<BlockOrigin> mBlocks;
@@ -281,22 +283,17 @@ void PipelineRun::listBlocks()
 
 // For a face target: the faces of the full-resolution surface, counted over this process's blocks
 // (with ranks, each counts its own share and agreeAmongRanks adds them up).
-void PipelineRun::countFacesForTarget(const VolumeOpener& open)
+void PipelineRun::countFacesForTarget()
 {
     if (mOpt.targetFaces == 0) return;
     const auto [begin, end] = rankBlocks();
     const double start = mClock.seconds();
-    // Counted on the volume itself, which frees leaves as it goes, then opened again for extraction:
-    // one copy of the topology at a time (a second copy made the start of a run its peak on large
-    // inputs kept to small outputs).
     mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls, [this](double fraction) {
         return !mProgress || mProgress->counting(fraction);
     });
-    // The count alone: it divides among ranks, the second open does not (every rank repeats it).
+    // The count alone: it divides among ranks.
     mResult.report.secondsCount = mClock.seconds() - start;
-    mVol.reset();
     malloc_trim(0);
-    mVol = open();
 }
 
 void PipelineRun::setTarget()
@@ -812,7 +809,7 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.chooseIso();
         run.listBlocks();
         run.splitSlabs();
-        run.countFacesForTarget(open);
+        run.countFacesForTarget();
     } catch (const std::exception& e) {
         run.agreeAmongRanks(e.what());
         throw;

@@ -24,6 +24,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
+#include <unordered_map>
 
 #include <malloc.h>
 
@@ -163,6 +164,18 @@ public:
     void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
     {
         typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
+            const LeafT* leaf = acc.probeConstLeaf(at);
+            return leaf ? leaf->buffer().data() : nullptr;
+        });
+    }
+
+    // The same with the voxels `valuesAt` gives for the leaf at a coordinate (null: a tile there,
+    // read through `acc`).
+    template <typename ValuesAt>
+    void sampleLeaves(const std::array<int32_t, 3>& origin, BlockSamples& out, typename GridT::ConstAccessor& acc,
+                      ValuesAt valuesAt) const
+    {
         out.origin = origin;
         constexpr int N = BlockSamples::N, D = int(LeafT::DIM);
         static_assert(N == D + 1, "a block spans one leaf and the first voxel layer of the next");
@@ -172,8 +185,7 @@ public:
             const int lo[3] = {(d & 1) * D, ((d >> 1) & 1) * D, ((d >> 2) & 1) * D};
             const int hi[3] = {lo[0] ? N : D, lo[1] ? N : D, lo[2] ? N : D};
             const openvdb::Coord at(origin[0] + lo[0], origin[1] + lo[1], origin[2] + lo[2]);
-            if (const LeafT* leaf = acc.probeConstLeaf(at)) {
-                const auto* v = leaf->buffer().data();
+            if (const ValueT* v = valuesAt(at)) {
                 for (int z = lo[2]; z < hi[2]; ++z)
                     for (int y = lo[1]; y < hi[1]; ++y)
                         for (int x = lo[0]; x < hi[0]; ++x)
@@ -298,6 +310,8 @@ public:
         }
     }
 
+    std::unique_ptr<CopyReader> copyReader() const override { return std::make_unique<Copies>(*this); }
+
     std::array<double, 2> valueRange() const override
     {
         // Scanning the grid itself would load every voxel buffer at once and keep it: read a second,
@@ -361,6 +375,95 @@ private:
     mutable std::mutex mDamageMutex;
     mutable std::string mDamage;
     std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
+
+    // Volume::CopyReader: each leaf a pass reads is loaded through a copy of its node made on the stack
+    // (the volume's own node stays on disk) and its voxels kept in a slot of a pool, by origin (a lock
+    // and map per stripe of origins, as loadLeaves locks), until release() or the reader's end. The
+    // pool's slots come from large arrays and are reused: thousands of voxel arrays freed one by one
+    // would leave the heap holed under the topology, and extraction's own allocations would follow
+    // them there. A leaf already in memory (a caller's grid) is read in place.
+    class Copies final : public CopyReader {
+    public:
+        explicit Copies(const VolumeT& volume) : mVolume(volume) {}
+
+        void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) override
+        {
+            // Leaves are looked up in the tree, not through the accessor: an accessor that caches a
+            // leaf reads its voxels (it keeps a pointer to them), which would load the volume's own.
+            // Tiles are read through it.
+            typename GridT::ConstAccessor acc = mVolume.mGrid->getConstAccessor();
+            mVolume.sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
+                const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(at);
+                if (!leaf) return nullptr;
+                return leaf->buffer().isOutOfCore() ? valuesOf(*leaf) : leaf->buffer().data();
+            });
+        }
+
+        void release(const std::array<int32_t, 3>& o) override
+        {
+            Values* gone = nullptr;
+            {
+                Stripe& s = stripe(o);
+                std::lock_guard<std::mutex> lock(s.mutex);
+                const auto it = s.leaves.find(o);
+                if (it == s.leaves.end()) return;
+                gone = it->second;
+                s.leaves.erase(it);
+            }
+            std::lock_guard<std::mutex> lock(mPoolMutex);
+            mFree.push_back(gone);
+        }
+
+    private:
+        using Values = std::array<ValueT, LeafT::SIZE>;
+        static constexpr size_t kSlotsPerArray = 256;
+        struct OriginHash {
+            size_t operator()(const std::array<int32_t, 3>& o) const
+            {
+                return size_t(uint32_t(o[0]) * 73856093u ^ uint32_t(o[1]) * 19349663u ^ uint32_t(o[2]) * 83492791u);
+            }
+        };
+        struct Stripe {
+            std::mutex mutex;
+            std::unordered_map<std::array<int32_t, 3>, Values*, OriginHash> leaves;
+        };
+        Stripe& stripe(const std::array<int32_t, 3>& o) { return mStripes[OriginHash()(o) % kLoadStripes]; }
+
+        Values* takeSlot()
+        {
+            std::lock_guard<std::mutex> lock(mPoolMutex);
+            if (mFree.empty()) {
+                mArrays.push_back(std::make_unique<Values[]>(kSlotsPerArray));
+                for (size_t i = kSlotsPerArray; i-- > 0;) mFree.push_back(&mArrays.back()[i]);
+            }
+            Values* v = mFree.back();
+            mFree.pop_back();
+            return v;
+        }
+
+        const ValueT* valuesOf(const LeafT& leaf)
+        {
+            const openvdb::Coord& c = leaf.origin();
+            const std::array<int32_t, 3> o{c.x(), c.y(), c.z()};
+            Stripe& s = stripe(o);
+            std::lock_guard<std::mutex> lock(s.mutex);
+            if (const auto it = s.leaves.find(o); it != s.leaves.end()) return it->second->data();
+            // A copy of a node still on disk keeps its place in the file: reading it leaves the
+            // volume's node unread. Its voxels go to the pool, and the copy with its array at once.
+            LeafT copy(leaf);
+            loadLeaf(copy, mVolume.mInfo.gridName);
+            Values* v = takeSlot();
+            std::copy_n(copy.buffer().data(), LeafT::SIZE, v->data());
+            s.leaves.emplace(o, v);
+            return v->data();
+        }
+
+        const VolumeT& mVolume;
+        std::array<Stripe, kLoadStripes> mStripes;
+        std::mutex mPoolMutex;
+        std::vector<std::unique_ptr<Values[]>> mArrays;
+        std::vector<Values*> mFree;
+    };
 };
 
 Affine affineOf(const openvdb::math::Transform& xform)

@@ -69,6 +69,22 @@ public:
     virtual void parkLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     // How many leaves parkLeaf has parked so far.
     uint64_t parkedLeaves() const { return mParked.load(std::memory_order_relaxed); }
+
+    // A pass over the blocks before extraction (the face count of a face target) that leaves this
+    // volume as opened: each leaf still on disk is read into a copy of its own, kept until release(),
+    // so the volume's leaves stay unread in their sweep-order layout and extraction follows on the
+    // same volume. A second open would read the topology again, on every MPI rank.
+    class CopyReader {
+    public:
+        virtual ~CopyReader() = default;
+        // As Volume::sample. Thread-safe. @throw InputError on NaN/Inf or unreadable voxels.
+        virtual void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) = 0;
+        // Frees the copy of the leaf whose origin is `blockOrigin`, if any (once every block that
+        // samples it is done, as for releaseLeaf). Thread-safe.
+        virtual void release(const std::array<int32_t, 3>& blockOrigin) = 0;
+    };
+    // Copies left unreleased go with the reader.
+    virtual std::unique_ptr<CopyReader> copyReader() const = 0;
     // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
     // a few MB (more often, the other threads' TLB flushes cost time).
     static constexpr size_t kTrimEveryBlocks = 16;
