@@ -24,7 +24,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
-#include <unordered_map>
 
 #include <malloc.h>
 
@@ -377,14 +376,27 @@ private:
     std::unique_ptr<typename GridT::TreeType::LeafNodeType> mKeepsMapping;
 
     // Volume::CopyReader: each leaf a pass reads is loaded through a copy of its node made on the stack
-    // (the volume's own node stays on disk) and its voxels kept in a slot of a pool, by origin (a lock
-    // and map per stripe of origins, as loadLeaves locks), until release() or the reader's end. The
-    // pool's slots come from large arrays and are reused: thousands of voxel arrays freed one by one
-    // would leave the heap holed under the topology, and extraction's own allocations would follow
-    // them there. A leaf already in memory (a caller's grid) is read in place.
+    // (the volume's own node stays on disk) and its voxels kept in a slot of a pool until release() or
+    // the reader's end. The reader numbers the volume's leaves in their transient data once, before
+    // any read, and keeps each leaf's slot in an atomic array by that number: a read finds the voxels
+    // without a lock or a map, and only a leaf's first load and its release take the lock of its
+    // stripe of origins, as loadLeaves does. The slots come from large arrays and are reused: voxel
+    // arrays freed one by one would leave the heap holed under the topology, and extraction's own
+    // allocations would follow them there. A caller's grid (in memory) is read in place, untouched.
     class Copies final : public CopyReader {
     public:
-        explicit Copies(const VolumeT& volume) : mVolume(volume) {}
+        explicit Copies(const VolumeT& volume) : mVolume(volume)
+        {
+            if (!mVolume.mFromFile) return;
+            uint32_t n = 0;
+            for (auto it = mVolume.mGrid->tree().beginLeaf(); it; ++it) it->setTransientData(n++);
+            mSlotOf.reset(new std::atomic<uint32_t>[n]());
+        }
+        ~Copies() override
+        {
+            if (!mVolume.mFromFile) return;
+            for (auto it = mVolume.mGrid->tree().beginLeaf(); it; ++it) it->setTransientData(0);
+        }
 
         void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) override
         {
@@ -395,74 +407,75 @@ private:
             mVolume.sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
                 const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(at);
                 if (!leaf) return nullptr;
-                return leaf->buffer().isOutOfCore() ? valuesOf(*leaf) : leaf->buffer().data();
+                if (!leaf->buffer().isOutOfCore()) return leaf->buffer().data();
+                if (const uint32_t slot = mSlotOf[leaf->transientData()].load(std::memory_order_acquire))
+                    return values(slot - 1);
+                return load(*leaf);
             });
         }
 
         void release(const std::array<int32_t, 3>& o) override
         {
-            Values* gone = nullptr;
+            const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]));
+            if (!leaf || !leaf->buffer().isOutOfCore()) return;
+            uint32_t slot;
             {
-                Stripe& s = stripe(o);
-                std::lock_guard<std::mutex> lock(s.mutex);
-                const auto it = s.leaves.find(o);
-                if (it == s.leaves.end()) return;
-                gone = it->second;
-                s.leaves.erase(it);
+                std::lock_guard<std::mutex> lock(stripe(leaf->origin()));
+                slot = mSlotOf[leaf->transientData()].exchange(0, std::memory_order_acq_rel);
             }
+            if (slot == 0) return;
             std::lock_guard<std::mutex> lock(mPoolMutex);
-            mFree.push_back(gone);
+            mFree.push_back(slot - 1);
         }
 
     private:
         using Values = std::array<ValueT, LeafT::SIZE>;
-        static constexpr size_t kSlotsPerArray = 256;
-        struct OriginHash {
-            size_t operator()(const std::array<int32_t, 3>& o) const
-            {
-                return size_t(uint32_t(o[0]) * 73856093u ^ uint32_t(o[1]) * 19349663u ^ uint32_t(o[2]) * 83492791u);
-            }
-        };
-        struct Stripe {
-            std::mutex mutex;
-            std::unordered_map<std::array<int32_t, 3>, Values*, OriginHash> leaves;
-        };
-        Stripe& stripe(const std::array<int32_t, 3>& o) { return mStripes[OriginHash()(o) % kLoadStripes]; }
+        static constexpr uint32_t kSlotsPerArray = 256;
+        static constexpr size_t kArrays = 1 << 16;  // 16.7M slots: more leaves than a pass keeps at once
 
-        Values* takeSlot()
+        std::mutex& stripe(const openvdb::Coord& c)
+        {
+            const uint32_t h = uint32_t(c.x()) * 73856093u ^ uint32_t(c.y()) * 19349663u ^ uint32_t(c.z()) * 83492791u;
+            return mStripes[h % kLoadStripes];
+        }
+        ValueT* values(uint32_t slot) const { return mArrays[slot / kSlotsPerArray][slot % kSlotsPerArray].data(); }
+
+        uint32_t takeSlot()
         {
             std::lock_guard<std::mutex> lock(mPoolMutex);
             if (mFree.empty()) {
-                mArrays.push_back(std::make_unique<Values[]>(kSlotsPerArray));
-                for (size_t i = kSlotsPerArray; i-- > 0;) mFree.push_back(&mArrays.back()[i]);
+                if (mArrayCount == kArrays) throw std::bad_alloc();
+                mArrays[mArrayCount] = std::make_unique<Values[]>(kSlotsPerArray);
+                for (uint32_t i = kSlotsPerArray; i-- > 0;) mFree.push_back(uint32_t(mArrayCount) * kSlotsPerArray + i);
+                ++mArrayCount;
             }
-            Values* v = mFree.back();
+            const uint32_t slot = mFree.back();
             mFree.pop_back();
-            return v;
+            return slot;
         }
 
-        const ValueT* valuesOf(const LeafT& leaf)
+        const ValueT* load(const LeafT& leaf)
         {
-            const openvdb::Coord& c = leaf.origin();
-            const std::array<int32_t, 3> o{c.x(), c.y(), c.z()};
-            Stripe& s = stripe(o);
-            std::lock_guard<std::mutex> lock(s.mutex);
-            if (const auto it = s.leaves.find(o); it != s.leaves.end()) return it->second->data();
+            std::atomic<uint32_t>& mine = mSlotOf[leaf.transientData()];
+            std::lock_guard<std::mutex> lock(stripe(leaf.origin()));
+            if (const uint32_t slot = mine.load(std::memory_order_acquire)) return values(slot - 1);  // loaded meanwhile
             // A copy of a node still on disk keeps its place in the file: reading it leaves the
             // volume's node unread. Its voxels go to the pool, and the copy with its array at once.
             LeafT copy(leaf);
             loadLeaf(copy, mVolume.mInfo.gridName);
-            Values* v = takeSlot();
-            std::copy_n(copy.buffer().data(), LeafT::SIZE, v->data());
-            s.leaves.emplace(o, v);
-            return v->data();
+            const uint32_t slot = takeSlot();
+            std::copy_n(copy.buffer().data(), LeafT::SIZE, values(slot));
+            mine.store(slot + 1, std::memory_order_release);
+            return values(slot);
         }
 
         const VolumeT& mVolume;
-        std::array<Stripe, kLoadStripes> mStripes;
+        std::unique_ptr<std::atomic<uint32_t>[]> mSlotOf;  // slot + 1 of each leaf by its number; 0: none
+        std::array<std::mutex, kLoadStripes> mStripes;
         std::mutex mPoolMutex;
-        std::vector<std::unique_ptr<Values[]>> mArrays;
-        std::vector<Values*> mFree;
+        std::unique_ptr<std::unique_ptr<Values[]>[]> mArrays{new std::unique_ptr<Values[]>[kArrays]};
+        size_t mArrayCount = 0;
+        std::vector<uint32_t> mFree;
     };
 };
 
