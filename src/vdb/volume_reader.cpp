@@ -226,41 +226,46 @@ public:
 
     // Leaf nodes come off the file in tree order (z fastest inside each internal node) but are deleted
     // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
-    // and the topology's resident memory would stay whole although its nodes were gone. Copies made
-    // in sweep order (their voxels stay unread: delayed loading copies the file position) free their
-    // pages as the sweep passes. One row of parents along z at a time: the originals of a row are
-    // whole parents, read one after another, so once they are deleted and the heap consolidated, the
-    // next row's copies fill those ranges in order, and the topology is never held twice (the whole
-    // second copy was the peak of large runs kept to small outputs).
+    // and the topology's resident memory would stay whole although its nodes were gone. Nodes made
+    // again in sweep order free their pages as the sweep passes; each takes over its original's voxel
+    // buffer, which for a leaf still on disk is its place in the file (a copy would allocate a new file
+    // record and share the file's mapping once more, for every leaf). One row of parents along z at a
+    // time: the originals of a row are whole parents, read one after another, so once they are deleted
+    // and the heap consolidated, the next row's nodes fill those ranges in order, and the topology is
+    // never held twice (the whole second copy was the peak of large runs kept to small outputs).
     void layOutInSweepOrder()
     {
         // Sorted by origins read once: the nodes themselves lie all over the heap.
         struct Placed {
             std::array<int32_t, 3> zyx;
-            const LeafT* leaf;
+            LeafT* leaf;
         };
         std::vector<Placed> leaves;
         leaves.reserve(mGrid->tree().leafCount());
-        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) {
+        for (auto it = mGrid->tree().beginLeaf(); it; ++it) {
             const openvdb::Coord& o = it->origin();
             leaves.push_back({{o.z(), o.y(), o.x()}, it.getLeaf()});
         }
         std::sort(leaves.begin(), leaves.end(), [](const Placed& a, const Placed& b) { return a.zyx < b.zyx; });
         const auto row = [](const Placed& p) { return p.zyx[0] & ~int32_t(ParentT::DIM - 1); };
-        constexpr size_t kAhead = 8;  // nodes requested ahead of the copy: each is a cache miss
-        std::vector<std::unique_ptr<LeafT>> copies;
+        constexpr size_t kAhead = 8;  // nodes requested ahead of the one remade: each is a cache miss
+        std::vector<std::unique_ptr<LeafT>> remade;
         for (size_t begin = 0, end = 0; begin < leaves.size(); begin = end) {
             while (end < leaves.size() && row(leaves[end]) == row(leaves[begin])) ++end;
-            copies.clear();
+            remade.clear();
             for (size_t i = begin; i < end; ++i) {
                 if (i + kAhead < end) {
                     const char* ahead = reinterpret_cast<const char*>(leaves[i + kAhead].leaf);
                     __builtin_prefetch(ahead);
                     __builtin_prefetch(ahead + 64);
                 }
-                copies.push_back(std::make_unique<LeafT>(*leaves[i].leaf));
+                LeafT& original = *leaves[i].leaf;
+                auto node = std::make_unique<LeafT>(openvdb::PartialCreate(), original.origin(), mGrid->background());
+                node->setValueMask(original.getValueMask());
+                node->swap(original.buffer());
+                remade.push_back(std::move(node));
             }
-            for (auto& copy : copies) mGrid->tree().addLeaf(copy.release());  // deletes the original
+            for (auto& node : remade) mGrid->tree().addLeaf(node.release());  // deletes the original
             ::malloc_trim(0);
         }
     }
