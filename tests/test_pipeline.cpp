@@ -12,6 +12,7 @@
 #include "vdb_isosimp/errors.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
+#include <openvdb/io/File.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
 #include <gtest/gtest.h>
@@ -325,6 +326,7 @@ TEST(Pipeline, AFaceTargetCountsOnTheVolumeItExtracts)
     int opens = 0;
     Options o;
     o.targetFaces = 20000;
+    o.iso = 0.3;  // given: a default iso-value would scan a caller's grid in place first, loading it
     const Result counted = simplifyVolume(
         [&] {
             ++opens;
@@ -333,11 +335,26 @@ TEST(Pipeline, AFaceTargetCountsOnTheVolumeItExtracts)
         path, o, nullptr);
     EXPECT_EQ(opens, 1);
     Options r = ratioOptions(double(o.targetFaces) / double(counted.report.facesFull));
+    r.iso = o.iso;
     const Result rated = simplifyFile(path, r);
     EXPECT_EQ(counted.report.facesFull, rated.report.facesFull);
     EXPECT_EQ(counted.mesh.triangles, rated.mesh.triangles);
     EXPECT_EQ(counted.mesh.points, rated.mesh.points);
     EXPECT_NEAR(double(counted.mesh.triangles.size()), double(o.targetFaces), 0.01 * double(o.targetFaces));
+    // A caller's grid read with delayed loading (leaves still on disk) is counted as it is extracted,
+    // in place: the same mesh.
+    openvdb::io::File file(path);
+    file.open(/*delayLoad=*/true);
+    const openvdb::GridBase::Ptr grid = file.readGrid(file.beginName().gridName());
+    file.close();
+    const auto floats = openvdb::gridPtrCast<openvdb::FloatGrid>(grid);
+    ASSERT_TRUE(floats);
+    size_t onDisk = 0;
+    for (auto leaf = floats->tree().cbeginLeaf(); leaf; ++leaf) onDisk += leaf->buffer().isOutOfCore();
+    EXPECT_GT(onDisk, 0u);
+    const Result inPlace = simplifyGrid(*grid, o);
+    EXPECT_EQ(inPlace.report.facesFull, counted.report.facesFull);
+    EXPECT_EQ(inPlace.mesh.triangles, counted.mesh.triangles);
 }
 
 TEST(Pipeline, SameOutputForAnyThreadCount)

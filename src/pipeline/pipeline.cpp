@@ -89,9 +89,9 @@ constexpr size_t kProgressEveryBlocks = 256;
 // Exact face count of the full-resolution surface: the same case table over the same blocks. It reads
 // copies of the leaves (Volume::CopyReader), so the volume stays as opened for extraction, and frees
 // each copy once its last block is counted (blocks in order, as in extraction), so counting does not
-// load the whole volume at once. The blocks
-// go to the threads in runs of consecutive ones: a block alone is too little work to hand on, and two
-// threads on consecutive blocks keep meeting on the load lock of the leaf they share. `counted` hears
+// load the whole volume at once. The blocks go to the threads in runs of consecutive ones: a block
+// alone is too little work to hand on, and two threads on consecutive blocks keep meeting on the load
+// lock of the leaf they share. `counted` hears
 // the fraction of blocks counted, in order; false from it cancels.
 uint64_t countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, size_t begin, size_t end, const Classifier& cls,
                     const std::function<bool(double)>& counted)

@@ -387,7 +387,8 @@ private:
     // without a lock or a map, and only a leaf's first load and its release take the lock of its
     // stripe of origins, as loadLeaves does. The slots come from large arrays and are reused: voxel
     // arrays freed one by one would leave the heap holed under the topology, and extraction's own
-    // allocations would follow them there. A caller's grid (in memory) is read in place, untouched.
+    // allocations would follow them there. A caller's grid is read as extraction reads it (its leaves
+    // are never freed, and none of its nodes is numbered).
     class Copies final : public CopyReader {
     public:
         explicit Copies(const VolumeT& volume) : mVolume(volume)
@@ -408,6 +409,7 @@ private:
             // Leaves are looked up in the tree, not through the accessor: an accessor that caches a
             // leaf reads its voxels (it keeps a pointer to them), which would load the volume's own.
             // Tiles are read through it.
+            if (!mSlotOf) return mVolume.sample(origin, out, 0);  // a caller's grid: as extraction reads it
             typename GridT::ConstAccessor acc = mVolume.mGrid->getConstAccessor();
             mVolume.sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
                 const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(at);
@@ -421,6 +423,7 @@ private:
 
         void release(const std::array<int32_t, 3>& o) override
         {
+            if (!mSlotOf) return;
             const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]));
             if (!leaf || !leaf->buffer().isOutOfCore()) return;
             uint32_t slot;
