@@ -5,6 +5,8 @@
 #include <dcmtk/dcmdata/dcdeftag.h>
 #include <dcmtk/dcmdata/dcdict.h>
 #include <dcmtk/dcmdata/dcfilefo.h>
+#include <dcmtk/dcmdata/dcistrmf.h>
+#include <dcmtk/dcmdata/dcmetinf.h>
 #include <dcmtk/dcmdata/dcrledrg.h>
 #include <dcmtk/dcmdata/dcxfer.h>
 #include <dcmtk/dcmjpeg/djdecode.h>
@@ -15,13 +17,20 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
+#include <vector>
+
+#include <sys/mman.h>
 #include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
 
 namespace vdb_isosimp {
 
@@ -96,18 +105,105 @@ uint16_t getU16(DcmDataset& ds, const DcmTagKey& tag, uint16_t fallback)
     return ds.findAndGetUint16(tag, v).good() ? v : fallback;
 }
 
+/// One DICOM file, loaded by DCMTK from a file it can seek in. A deflated dataset (Deflated Explicit VR
+/// Little Endian) is inflated first into an in-memory file: from a compressed stream DCMTK reads each
+/// value at once into a buffer of the value's declared length, so one damaged length field claims up
+/// to 4 GiB, whereas from a plain file it leaves large values on disk until they are asked for and
+/// checks each length against the file's size.
+class DicomFile {
+public:
+    /// No single-frame slice inflates to more: a larger result is damage or a decompression bomb.
+    static constexpr uint64_t kMaxInflatedBytes = uint64_t(1) << 30;
+
+    explicit DicomFile(const std::string& path) : mPath(path)
+    {
+        DcmInputFileStream in(path.c_str());
+        if (in.status().bad()) return;  // loading names the problem
+        DcmMetaInfo meta;
+        meta.transferInit();
+        const OFCondition c = meta.read(in, EXS_Unknown, EGL_noChange, DCM_MaxReadLength);
+        meta.transferEnd();
+        OFString uid;
+        if (c.bad() || meta.findAndGetOFString(DCM_TransferSyntaxUID, uid).bad() ||
+            DcmXfer(uid.c_str()).getXfer() != EXS_DeflatedLittleEndianExplicit)
+            return;
+        inflateDataset(static_cast<uint64_t>(in.tell()));
+    }
+    ~DicomFile()
+    {
+        if (mInflated >= 0) ::close(mInflated);
+    }
+    DicomFile(const DicomFile&) = delete;
+    DicomFile& operator=(const DicomFile&) = delete;
+
+    /// Loads the whole file, or with `headerOnly` everything before the pixel data.
+    OFCondition load(DcmFileFormat& ff, bool headerOnly) const
+    {
+        const bool inflated = mInflated >= 0;
+        const std::string path = inflated ? "/proc/self/fd/" + std::to_string(mInflated) : mPath;
+        const E_TransferSyntax xfer = inflated ? EXS_LittleEndianExplicit : EXS_Unknown;
+        const E_FileReadMode mode = inflated ? ERM_dataset : ERM_autoDetect;
+        return headerOnly ? ff.loadFileUntilTag(path.c_str(), xfer, EGL_noChange, DCM_MaxReadLength, mode, DCM_PixelData)
+                          : ff.loadFile(path.c_str(), xfer, EGL_noChange, DCM_MaxReadLength, mode);
+    }
+
+    /// The transfer syntax the file is stored in, as `load`'s dataset cannot tell for an inflated file.
+    E_TransferSyntax storedXfer(const DcmDataset& loaded) const
+    {
+        return mInflated >= 0 ? EXS_DeflatedLittleEndianExplicit : loaded.getOriginalXfer();
+    }
+
+private:
+    /// Inflates the raw deflate stream after the meta header (at `offset`) into an in-memory file.
+    void inflateDataset(uint64_t offset)
+    {
+        std::ifstream f(mPath, std::ios::binary);
+        f.seekg(static_cast<std::streamoff>(offset));
+        const std::string packed((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+        mInflated = ::memfd_create("vdb_isosimp-dicom", MFD_CLOEXEC);
+        if (mInflated < 0) throw RawInputError(mPath, std::string("cannot inflate the deflated dataset: ") + std::strerror(errno));
+        z_stream z{};
+        if (inflateInit2(&z, -MAX_WBITS) != Z_OK) throw RawInputError(mPath, "cannot inflate the deflated dataset (zlib)");
+        z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(packed.data()));
+        z.avail_in = static_cast<uInt>(packed.size());
+        std::vector<unsigned char> chunk(1 << 20);
+        uint64_t total = 0;
+        int rc = Z_OK;
+        std::string problem;
+        while (rc == Z_OK && problem.empty()) {
+            z.next_out = chunk.data();
+            z.avail_out = static_cast<uInt>(chunk.size());
+            rc = inflate(&z, Z_NO_FLUSH);
+            const std::size_t got = chunk.size() - z.avail_out;
+            total += got;
+            if (rc != Z_OK && rc != Z_STREAM_END)
+                problem = rc == Z_BUF_ERROR ? std::string("deflated dataset cut short")
+                                            : std::string("damaged deflated dataset (zlib: ") + (z.msg ? z.msg : "error") + ")";
+            else if (total > kMaxInflatedBytes)
+                problem = "deflated dataset inflates to more than 1 GiB: damaged, or no single image";
+            else if (got > 0 && ::write(mInflated, chunk.data(), got) != static_cast<ssize_t>(got))
+                problem = std::string("cannot inflate the deflated dataset: ") + std::strerror(errno);
+        }
+        inflateEnd(&z);
+        if (!problem.empty()) throw RawInputError(mPath, problem);
+    }
+
+    std::string mPath;
+    int mInflated = -1;  // the in-memory file holding the inflated dataset, if the file is deflated
+};
+
 /// Reads the header of `path` up to the pixel data. Returns false for a DICOM object that is no image
 /// (no Rows/Columns: DICOMDIR, structured reports, presentation states).
 bool readHeader(const std::string& path, DicomSlice& s)
 {
+    const DicomFile file(path);
     DcmFileFormat ff;
-    const OFCondition c =
-        ff.loadFileUntilTag(path.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_autoDetect, DCM_PixelData);
+    const OFCondition c = file.load(ff, true);
     if (c.bad()) throw RawInputError(path, std::string("damaged or truncated DICOM file (DCMTK: ") + c.text() + ")");
     DcmDataset& ds = *ff.getDataset();
     if (!ds.tagExists(DCM_Rows) || !ds.tagExists(DCM_Columns)) return false;
     s.path = path;
-    s.xfer = ds.getOriginalXfer();
+    s.xfer = file.storedXfer(ds);
     OFString str;
     if (ds.findAndGetOFString(DCM_SeriesInstanceUID, str).good()) s.series = str.c_str();
     if (ds.findAndGetOFString(DCM_SeriesDescription, str).good()) s.seriesDescription = str.c_str();
@@ -245,8 +341,9 @@ private:
 
     void readSlice(const DicomSlice& s, unsigned char* dst) const
     {
+        const DicomFile file(s.path);
         DcmFileFormat ff;
-        OFCondition c = ff.loadFile(s.path.c_str());
+        OFCondition c = file.load(ff, false);
         if (c.bad()) throw RawInputError(s.path, std::string("damaged or truncated DICOM file (DCMTK: ") + c.text() + ")");
         DcmDataset& ds = *ff.getDataset();
         const E_TransferSyntax xfer = ds.getOriginalXfer();

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 #include <openvdb/io/File.h>
 #include <tiffio.h>
+#include <zlib.h>
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -40,14 +41,19 @@ namespace {
 
 /// The program fails on `input` with `code`, one line on stderr naming `fileInMessage` and holding every
 /// word of `mustContain`, nothing on stdout, and nothing left in the output folder.
+/// With `addressSpaceMiB`, the program runs with its virtual memory limited to that (ulimit -v).
 void expectFailure(const TempDir& dir, const fs::path& input, const std::vector<std::string>& extra, int code,
-                   const std::vector<std::string>& mustContain, const fs::path& fileInMessage)
+                   const std::vector<std::string>& mustContain, const fs::path& fileInMessage, int addressSpaceMiB = 0)
 {
     const fs::path outDir = dir / "out";
     fs::create_directories(outDir);
     std::vector<std::string> args{input.string(), "-o", (outDir / "result.vdb").string()};
     args.insert(args.end(), extra.begin(), extra.end());
-    const auto r = raw2vdb(args, dir.path);
+    if (addressSpaceMiB > 0) {
+        const std::string limit = "ulimit -v " + std::to_string(addressSpaceMiB * 1024) + " && exec \"$0\" \"$@\"";
+        args.insert(args.begin(), {"-c", limit, RAW2VDB_EXE});
+    }
+    const auto r = addressSpaceMiB > 0 ? runProgram("/bin/sh", args, dir.path) : raw2vdb(args, dir.path);
     std::printf("    %s", r.err.c_str());  // the message, for the log
     EXPECT_EQ(r.code, code) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -735,6 +741,67 @@ TEST(StackBadInput, DicomUndecodableTransferSyntaxIsNamed)
     d->insert(pixels, true);
     ASSERT_TRUE(ff.saveFile((dir / "j2k" / "IM1").c_str(), EXS_JPEG2000LosslessOnly).good());
     expectFailure(dir, dir / "j2k", {}, 1, {"JPEG 2000", "1.2.840.10008.1.2.4.90", "cannot decode"}, dir / "j2k" / "IM1");
+}
+
+/// Raw deflate (RFC 1951), as the Deflated Explicit VR Little Endian transfer syntax stores a dataset.
+std::string rawDeflate(const std::string& in, bool inflate)
+{
+    z_stream z{};
+    EXPECT_EQ(inflate ? inflateInit2(&z, -MAX_WBITS) : deflateInit2(&z, 6, Z_DEFLATED, -MAX_WBITS, 8, Z_DEFAULT_STRATEGY), Z_OK);
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data()));
+    z.avail_in = static_cast<uInt>(in.size());
+    std::string out;
+    char buf[65536];
+    int rc = Z_OK;
+    while (rc == Z_OK) {
+        z.next_out = reinterpret_cast<Bytef*>(buf);
+        z.avail_out = sizeof buf;
+        rc = inflate ? ::inflate(&z, Z_NO_FLUSH) : ::deflate(&z, Z_FINISH);
+        out.append(buf, sizeof buf - z.avail_out);
+    }
+    EXPECT_EQ(rc, Z_STREAM_END);
+    if (inflate) inflateEnd(&z);
+    else deflateEnd(&z);
+    return out;
+}
+
+TEST(StackBadInput, DicomDeflatedLengthBeyondTheData)
+{
+    // A deflated slice holding an element that claims 4 GiB. Read in order from the compressed
+    // stream, DCMTK would allocate the declared length before finding the stream's end; the reader
+    // must find the damage without that allocation, so the program runs in 1 GiB of address space.
+    TempDir dir;
+    SeriesSpec s;
+    s.xfer = EXS_DeflatedLittleEndianExplicit;
+    s.slices = 4;
+    writeSeries(dir / "ct", s);
+    const std::string file = readFile(dir / "ct" / "IM2");
+    uint32_t metaLength = 0;  // (0002,0000) after the preamble: the meta group's length
+    std::memcpy(&metaLength, file.data() + 140, 4);
+    const std::size_t datasetAt = 144 + metaLength;
+    const std::string dataset = rawDeflate(file.substr(datasetAt), true);
+    const std::string pixelTag("\xe0\x7f\x10\x00", 4);
+    const std::size_t pixelAt = dataset.find(pixelTag + "OW");
+    ASSERT_NE(pixelAt, std::string::npos);
+    // A private OB element (group 7FD1 before the pixel data, 7FE1 after it) of length 0xFFFFFFF0.
+    const auto huge = [](const char* tag) { return std::string(tag, 4) + std::string("OB\0\0\xf0\xff\xff\xff", 8) + std::string(16, '\0'); };
+    for (const auto& damaged : {dataset.substr(0, pixelAt) + huge("\xd1\x7f\x10\x00") + dataset.substr(pixelAt),
+                                dataset + huge("\xe1\x7f\x10\x00")}) {
+        writeFile(dir / "ct" / "IM2", file.substr(0, datasetAt) + rawDeflate(damaged, false));
+        expectFailure(dir, dir / "ct", {}, 1, {"damaged or truncated DICOM file", "premature end"}, dir / "ct" / "IM2", 1024);
+    }
+    // Deflated data cut short, or not deflate at all.
+    writeFile(dir / "ct" / "IM2", file.substr(0, file.size() - 40));
+    expectFailure(dir, dir / "ct", {}, 1, {"deflated dataset cut short"}, dir / "ct" / "IM2");
+    writeFile(dir / "ct" / "IM2", file.substr(0, datasetAt) + std::string(300, '\x07'));
+    expectFailure(dir, dir / "ct", {}, 1, {"damaged deflated dataset"}, dir / "ct" / "IM2");
+    // The slice as written converts, in the same address space.
+    writeFile(dir / "ct" / "IM2", file);
+    const auto r = runProgram("/bin/sh", {"-c", "ulimit -v 1048576 && exec \"$0\" \"$@\"", RAW2VDB_EXE, (dir / "ct").string(), "-o",
+                                          (dir / "ct.vdb").string()},
+                              dir.path);
+    ASSERT_EQ(r.code, 0) << r.err;
+    expectSeriesGrid(*readVdb(dir / "ct.vdb"), s);
 }
 
 TEST(StackBadInput, FolderWithNoImage)
