@@ -104,9 +104,19 @@ Options ratioOptions(double r, int threads = 0)
     return o;
 }
 
+// A file this test process made, removed when the process exits.
+struct ProcessFile {
+    std::string path;
+    ~ProcessFile()
+    {
+        if (!path.empty()) std::remove(path.c_str());
+    }
+};
+
 std::string sphereFile()
 {
-    static std::string path;
+    static ProcessFile file;
+    std::string& path = file.path;
     if (path.empty()) {
         openvdb::initialize();
         // Radius 90 voxels: about 400k faces at full resolution.
@@ -120,7 +130,8 @@ std::string sphereFile()
 
 std::string noiseFile()
 {
-    static std::string path;
+    static ProcessFile file;
+    std::string& path = file.path;
     if (path.empty()) {
         path = ::testing::TempDir() + "/noise112_" + std::to_string(::getpid()) + ".vdb";
         const std::string cmd = std::string(MAKE_VOLUME_EXE) + " noise -n 112 -o " + path + " > /dev/null";
