@@ -157,13 +157,19 @@ private:
     /// Inflates the raw deflate stream after the meta header (at `offset`) into an in-memory file.
     void inflateDataset(uint64_t offset)
     {
+        // A deflate stream is at most its data plus 5 bytes per 64 KiB block: a longer one inflates past the limit.
+        if (fileSize(mPath) > offset + kMaxInflatedBytes + kMaxInflatedBytes / 1024)
+            throw RawInputError(mPath, "deflated dataset larger than 1 GiB: no single image");
         std::ifstream f(mPath, std::ios::binary);
         f.seekg(static_cast<std::streamoff>(offset));
         const std::string packed((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-        mInflated = ::memfd_create("vdb_isosimp-dicom", MFD_CLOEXEC);
-        if (mInflated < 0) throw RawInputError(mPath, std::string("cannot inflate the deflated dataset: ") + std::strerror(errno));
         z_stream z{};
         if (inflateInit2(&z, -MAX_WBITS) != Z_OK) throw RawInputError(mPath, "cannot inflate the deflated dataset (zlib)");
+        const int fd = ::memfd_create("vdb_isosimp-dicom", MFD_CLOEXEC);
+        if (fd < 0) {
+            inflateEnd(&z);
+            throw RawInputError(mPath, std::string("cannot inflate the deflated dataset: ") + std::strerror(errno));
+        }
         z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(packed.data()));
         z.avail_in = static_cast<uInt>(packed.size());
         std::vector<unsigned char> chunk(1 << 20);
@@ -181,11 +187,15 @@ private:
                                             : std::string("damaged deflated dataset (zlib: ") + (z.msg ? z.msg : "error") + ")";
             else if (total > kMaxInflatedBytes)
                 problem = "deflated dataset inflates to more than 1 GiB: damaged, or no single image";
-            else if (got > 0 && ::write(mInflated, chunk.data(), got) != static_cast<ssize_t>(got))
+            else if (got > 0 && ::write(fd, chunk.data(), got) != static_cast<ssize_t>(got))
                 problem = std::string("cannot inflate the deflated dataset: ") + std::strerror(errno);
         }
         inflateEnd(&z);
-        if (!problem.empty()) throw RawInputError(mPath, problem);
+        if (!problem.empty()) {
+            ::close(fd);
+            throw RawInputError(mPath, problem);
+        }
+        mInflated = fd;
     }
 
     std::string mPath;
