@@ -39,8 +39,6 @@ using namespace vdb_isosimp::testing;
 
 namespace {
 
-/// The program fails on `input` with `code`, one line on stderr naming `fileInMessage` and holding every
-/// word of `mustContain`, nothing on stdout, and nothing left in the output folder.
 #if defined(__SANITIZE_ADDRESS__)
 constexpr bool kAddressSanitizer = true;
 #elif defined(__has_feature)
@@ -49,18 +47,21 @@ constexpr bool kAddressSanitizer = __has_feature(address_sanitizer);
 constexpr bool kAddressSanitizer = false;
 #endif
 
-/// A shell command that runs "$0" "$@" with at most `mib` MiB for any allocation: by its virtual memory
-/// (ulimit -v), or under AddressSanitizer, whose shadow memory needs terabytes of address space, by
-/// its allocator's own limit (allocations beyond it fail as they would).
-std::string withMemoryLimit(int mib)
+/// raw2vdb with at most `mib` MiB for any allocation: by its virtual memory (ulimit -v), or under
+/// AddressSanitizer, whose shadow memory needs terabytes of address space, by its allocator's own limit
+/// (allocations beyond it fail as they would).
+RunResult raw2vdbWithMemoryLimit(std::vector<std::string> args, const fs::path& scratch, int mib)
 {
-    if (kAddressSanitizer)
-        return "ASAN_OPTIONS=\"${ASAN_OPTIONS:-}:max_allocation_size_mb=" + std::to_string(mib) +
-               ":allocator_may_return_null=1\" exec \"$0\" \"$@\"";
-    return "ulimit -v " + std::to_string(mib * 1024) + " && exec \"$0\" \"$@\"";
+    const std::string limit = kAddressSanitizer ? "ASAN_OPTIONS=\"${ASAN_OPTIONS:-}:max_allocation_size_mb=" + std::to_string(mib) +
+                                                      ":allocator_may_return_null=1\" exec \"$0\" \"$@\""
+                                                : "ulimit -v " + std::to_string(mib * 1024) + " && exec \"$0\" \"$@\"";
+    args.insert(args.begin(), {"-c", limit, RAW2VDB_EXE});
+    return runProgram("/bin/sh", args, scratch);
 }
 
-/// With `addressSpaceMiB`, the program runs with its memory limited to that (withMemoryLimit).
+/// The program fails on `input` with `code`, one line on stderr naming `fileInMessage` and holding every
+/// word of `mustContain`, nothing on stdout, and nothing left in the output folder. With
+/// `addressSpaceMiB`, it runs with its memory limited to that (raw2vdbWithMemoryLimit).
 void expectFailure(const TempDir& dir, const fs::path& input, const std::vector<std::string>& extra, int code,
                    const std::vector<std::string>& mustContain, const fs::path& fileInMessage, int addressSpaceMiB = 0)
 {
@@ -68,10 +69,7 @@ void expectFailure(const TempDir& dir, const fs::path& input, const std::vector<
     fs::create_directories(outDir);
     std::vector<std::string> args{input.string(), "-o", (outDir / "result.vdb").string()};
     args.insert(args.end(), extra.begin(), extra.end());
-    if (addressSpaceMiB > 0) {
-        args.insert(args.begin(), {"-c", withMemoryLimit(addressSpaceMiB), RAW2VDB_EXE});
-    }
-    const auto r = addressSpaceMiB > 0 ? runProgram("/bin/sh", args, dir.path) : raw2vdb(args, dir.path);
+    const auto r = addressSpaceMiB > 0 ? raw2vdbWithMemoryLimit(args, dir.path, addressSpaceMiB) : raw2vdb(args, dir.path);
     std::printf("    %s", r.err.c_str());  // the message, for the log
     EXPECT_EQ(r.code, code) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -815,8 +813,7 @@ TEST(StackBadInput, DicomDeflatedLengthBeyondTheData)
     expectFailure(dir, dir / "ct", {}, 1, {"damaged deflated dataset"}, dir / "ct" / "IM2");
     // The slice as written converts, in the same address space.
     writeFile(dir / "ct" / "IM2", file);
-    const auto r = runProgram("/bin/sh", {"-c", withMemoryLimit(1024), RAW2VDB_EXE, (dir / "ct").string(), "-o", (dir / "ct.vdb").string()},
-                              dir.path);
+    const auto r = raw2vdbWithMemoryLimit({(dir / "ct").string(), "-o", (dir / "ct.vdb").string()}, dir.path, 1024);
     ASSERT_EQ(r.code, 0) << r.err;
     expectSeriesGrid(*readVdb(dir / "ct.vdb"), s);
 }
