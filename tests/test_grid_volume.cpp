@@ -75,6 +75,15 @@ FileVolume fileVolume(unsigned seed, const std::string& name)
     return f;
 }
 
+// The blocks of a volume whose surface is at 0 (the random grids' level).
+std::vector<vi::BlockOrigin> blocksAtZero(const vi::Volume& vol)
+{
+    vi::Classifier c;
+    c.insideBelow = vol.info().levelSet;
+    c.iso = 0.0;
+    return vol.blocks(c);
+}
+
 } // namespace
 
 TEST(GridVolume, SameAsTheFileReader)
@@ -196,10 +205,7 @@ TEST(FileVolume, ACopyReaderReadsTheVoxelsAndLeavesTheVolumeOnDisk)
     const FileVolume f = fileVolume(11, "copies");
     const auto& vol = f.volume;
     const auto inMemory = vi::Volume::fromGrid(f.grid, "in-memory grid");
-    vi::Classifier c;
-    c.insideBelow = vol->info().levelSet;
-    c.iso = 0.0;
-    const auto blocks = vol->blocks(c);
+    const auto blocks = blocksAtZero(*vol);
     ASSERT_FALSE(blocks.empty());
     std::set<std::array<int32_t, 3>> stored;
     for (const auto& o : blocks)
@@ -227,6 +233,48 @@ TEST(FileVolume, ACopyReaderReadsTheVoxelsAndLeavesTheVolumeOnDisk)
     }
     for (const auto& l : stored) vol->parkLeaf(l);
     EXPECT_EQ(vol->parkedLeaves(), stored.size());
+}
+
+TEST(FileVolume, ARankKeepsTheLeavesItsBlocksSampleAndNoOther)
+{
+    // An MPI rank extracts a run of the block list: it keeps the leaves those blocks sample (their
+    // own and the plane above them) and deletes the rest of the topology. Its blocks read the grid's
+    // voxels as before; blocks whose leaves all lie elsewhere read background tiles in their place
+    // (some of them differ from the grid then). The whole list keeps every leaf.
+    for (const bool whole : {false, true}) {
+        const FileVolume f = fileVolume(13, whole ? "all_leaves" : "rank_leaves");
+        const auto& vol = f.volume;
+        const auto inMemory = vi::Volume::fromGrid(f.grid, "in-memory grid");
+        const auto blocks = blocksAtZero(*vol);
+        ASSERT_GT(blocks.size(), 30u);
+        const size_t begin = whole ? 0 : blocks.size() / 3, end = whole ? blocks.size() : 2 * blocks.size() / 3;
+        std::set<std::array<int32_t, 3>> kept;
+        for (size_t i = begin; i < end; ++i)
+            for (int d = 0; d < 8; ++d) kept.insert(vi::sampledLeaf(blocks[i], d));
+        if (whole) vol->keepLeaves({});
+        else vol->keepLeaves([&](const std::array<int32_t, 3>& leaf) { return kept.count(leaf) > 0; });
+        vi::BlockSamples a, b;
+        size_t elsewhere = 0;
+        for (size_t i = 0; i < blocks.size(); ++i) {
+            vol->sample(blocks[i], a);
+            inMemory->sample(blocks[i], b);
+            if (i >= begin && i < end) {
+                ASSERT_EQ(a.values, b.values) << "block " << i;
+                continue;
+            }
+            bool stored = false, keptAny = false;
+            for (int d = 0; d < 8; ++d) {
+                const auto l = vi::sampledLeaf(blocks[i], d);
+                keptAny |= kept.count(l) > 0;
+                stored |= f.grid->tree().probeConstLeaf(openvdb::Coord(l[0], l[1], l[2])) != nullptr;
+            }
+            if (whole) ASSERT_EQ(a.values, b.values) << "block " << i;
+            else if (stored && !keptAny && a.values != b.values) ++elsewhere;
+        }
+        if (!whole) {
+            EXPECT_GT(elsewhere, 0u);
+        }
+    }
 }
 
 TEST(FileVolume, ParkingLeavesBetweenBandsKeepsTheMesh)

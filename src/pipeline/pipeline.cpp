@@ -1,5 +1,6 @@
 // The driver: a script of named stages (runPipeline).
-//   open (delayed loading) -> iso-value -> block list (z/y/x) -> [count faces, for a face target]
+//   open (delayed loading) -> iso-value -> block list (z/y/x) -> slabs -> the leaves of this
+//   process's slabs, laid out in sweep order -> [count faces, for a face target]
 //   -> slabs: extract blocks (parallel), integrate in order + decimate every B faces
 //   -> merge tree: siblings join, their seam is finalised and decimated (subtrees in parallel; with
 //      MPI ranks, each rank's subtree travels to its parent's rank) -> final decimation.
@@ -152,6 +153,7 @@ public:
     void chooseIso();
     void listBlocks();
     void splitSlabs();
+    void keepOwnLeaves();
     void countFacesForTarget();
     void agreeAmongRanks(const std::string& error);
     void setTarget();
@@ -317,6 +319,24 @@ void PipelineRun::splitSlabs()
     mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
     // The decimator's least face weight is a fraction of a voxel face, in world units.
     mVoxelArea = std::pow(std::abs(mInfo.indexToWorld.determinant()), 2.0 / 3.0);
+}
+
+// The leaves this process's blocks sample, laid out in sweep order; with ranks, the others go. A
+// leaf is sampled by its own block and the up to 7 below it (sampledLeaf): it stays if one of those
+// falls within this process's run of the block order (a position there that is no block keeps a leaf
+// that nobody reads, which is harmless), a test per leaf instead of a set of every sampled leaf.
+void PipelineRun::keepOwnLeaves()
+{
+    const auto [begin, end] = rankBlocks();
+    if (begin == 0 && end == mBlocks.size()) return mVol->keepLeaves({});
+    const auto within = [&](const BlockOrigin& b) {
+        return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
+    };
+    mVol->keepLeaves([&](const BlockOrigin& leaf) {
+        for (int d = 0; d < 8; ++d)
+            if (within({leaf[0] - 8 * (d & 1), leaf[1] - 8 * ((d >> 1) & 1), leaf[2] - 8 * ((d >> 2) & 1)})) return true;
+        return false;
+    });
 }
 
 // Ranks agree that each has the same block list before the tree: a rank that could not start
@@ -809,6 +829,7 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.chooseIso();
         run.listBlocks();
         run.splitSlabs();
+        run.keepOwnLeaves();
         run.countFacesForTarget();
     } catch (const std::exception& e) {
         run.agreeAmongRanks(e.what());

@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <sys/mman.h>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -100,8 +101,14 @@ public:
         if (fromFile) {
             keepMappingAlive();
             trimInputMapping();  // the topology was read through the mapping
-            layOutInSweepOrder();
         }
+    }
+
+    void keepLeaves(const std::function<bool(const std::array<int32_t, 3>&)>& keep) override
+    {
+        if (!mFromFile) return;  // a caller's grid stays whole
+        if (keep) dropLeaves([&](const openvdb::Coord& o) { return !keep({o.x(), o.y(), o.z()}); });
+        layOutInSweepOrder();
     }
 
     std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const override
@@ -233,6 +240,23 @@ public:
     // time: the originals of a row are whole parents, read one after another, so once they are deleted
     // and the heap consolidated, the next row's nodes fill those ranges in order, and the topology is
     // never held twice (the whole second copy was the peak of large runs kept to small outputs).
+    // Deletes the leaves `drop` names, parent by parent (a tile of the background in a leaf's slot
+    // deletes the leaf): nothing samples them, and on one rank of many they are most of the topology.
+    template <typename Drop>
+    void dropLeaves(Drop drop)
+    {
+        std::vector<ParentT*> parents;
+        mGrid->tree().getNodes(parents);
+        std::vector<openvdb::Index> gone;
+        for (ParentT* parent : parents) {
+            gone.clear();
+            for (auto it = parent->cbeginChildOn(); it; ++it)
+                if (drop(it->origin())) gone.push_back(it.pos());
+            for (const openvdb::Index n : gone) parent->addTile(n, mGrid->background(), false);
+        }
+        ::malloc_trim(0);
+    }
+
     void layOutInSweepOrder()
     {
         // Sorted by origins read once: the nodes themselves lie all over the heap.

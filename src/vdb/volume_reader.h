@@ -5,6 +5,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -49,6 +50,11 @@ public:
 
     // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
     virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
+    // Keeps the leaves `keep` accepts (by origin; empty: all of them), laid out in sweep order so that
+    // their pages empty as extraction releases them, and deletes every other leaf (an MPI rank keeps
+    // the leaves its own slabs sample, not the whole topology). Once, after blocks() and before any
+    // sample. A caller's grid is left as it is.
+    virtual void keepLeaves(const std::function<bool(const std::array<int32_t, 3>& leafOrigin)>& keep) = 0;
     // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
     virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
