@@ -231,15 +231,6 @@ public:
             }
     }
 
-    // Leaf nodes come off the file in tree order (z fastest inside each internal node) but are deleted
-    // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
-    // and the topology's resident memory would stay whole although its nodes were gone. Nodes made
-    // again in sweep order free their pages as the sweep passes; each takes over its original's voxel
-    // buffer, which for a leaf still on disk is its place in the file (a copy would allocate a new file
-    // record and share the file's mapping once more, for every leaf). One row of parents along z at a
-    // time: the originals of a row are whole parents, read one after another, so once they are deleted
-    // and the heap consolidated, the next row's nodes fill those ranges in order, and the topology is
-    // never held twice (the whole second copy was the peak of large runs kept to small outputs).
     // Deletes the leaves `drop` names, parent by parent (a tile of the background in a leaf's slot
     // deletes the leaf): nothing samples them, and on one rank of many they are most of the topology.
     template <typename Drop>
@@ -257,6 +248,15 @@ public:
         ::malloc_trim(0);
     }
 
+    // Leaf nodes come off the file in tree order (z fastest inside each internal node) but are deleted
+    // in sweep order (z slowest, releaseLeaf), so a page of nodes emptied only near the end of the run
+    // and the topology's resident memory would stay whole although its nodes were gone. Nodes made
+    // again in sweep order free their pages as the sweep passes; each takes over its original's voxel
+    // buffer, which for a leaf still on disk is its place in the file (a copy would allocate a new file
+    // record and share the file's mapping once more, for every leaf). One row of parents along z at a
+    // time: the originals of a row are whole parents, read one after another, so once they are deleted
+    // and the heap consolidated, the next row's nodes fill those ranges in order, and the topology is
+    // never held twice (the whole second copy was the peak of large runs kept to small outputs).
     void layOutInSweepOrder()
     {
         // Sorted by origins read once: the nodes themselves lie all over the heap.
