@@ -5,7 +5,10 @@ Input: the --report JSON of a single-process run (threads 1 gives clean per-node
 tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
 Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
   setup    : opening the file, the topology and the block list; every rank repeats it (serial). For
-             a face target, counting the faces: each rank counts its own slabs (divided by W).
+             a face target, counting the faces: each rank counts its own slabs (divided by W). Laying
+             out the leaves (seconds_layout): each rank its own slabs' (divided by W; the pass that
+             deletes the other leaves, which every rank makes, is not in the model: about 0.05 s a rank
+             on the 2 GB gyroid, docs/perf.md).
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
@@ -51,7 +54,8 @@ def model(report, wall, even=False):
     faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
     count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
-    setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count)
+    layout = report.get("seconds_layout", 0.0)  # each rank lays out its own slabs' leaves
+    setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count - layout)
 
     def serial(l, r):
         if r - l == 1:
@@ -72,12 +76,12 @@ def model(report, wall, even=False):
         seconds, below = (left, left_path) if left >= right + transfer else (right + transfer, right_path)
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
 
-    one = setup + count + serial(0, slabs) + final
+    one = setup + count + layout + serial(0, slabs) + final
     rows = []
     for w in WORKERS:
-        t = setup + count / min(w, slabs) + parallel(0, slabs, 0, w)[0] + final
+        t = setup + (count + layout) / min(w, slabs) + parallel(0, slabs, 0, w)[0] + final
         rows.append((w, t, one / t))
-    return setup + count, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1]
+    return setup + count + layout, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1]
 
 
 def svg(curves, path):

@@ -139,6 +139,7 @@ struct Report {
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
     double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
     double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
+    double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
     double peakRssMb = 0.0;
     uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.

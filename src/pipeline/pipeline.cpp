@@ -154,6 +154,7 @@ public:
     void listBlocks();
     void splitSlabs();
     void keepOwnLeaves();
+    void keepLeavesIn(size_t begin, size_t end);
     void countFacesForTarget();
     void agreeAmongRanks(const std::string& error);
     void setTarget();
@@ -327,7 +328,15 @@ void PipelineRun::splitSlabs()
 // that nobody reads, which is harmless), a test per leaf instead of a set of every sampled leaf.
 void PipelineRun::keepOwnLeaves()
 {
+    const double start = mClock.seconds();
     const auto [begin, end] = rankBlocks();
+    keepLeavesIn(begin, end);
+    // Each rank lays out its own share: the scaling model divides it among workers.
+    mResult.report.secondsLayout = mClock.seconds() - start;
+}
+
+void PipelineRun::keepLeavesIn(size_t begin, size_t end)
+{
     if (begin == 0 && end == mBlocks.size()) return mVol->keepLeaves({});
     const auto within = [&](const BlockOrigin& b) {
         return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));

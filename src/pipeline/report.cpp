@@ -42,6 +42,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds_slabs", r.secondsSlabs),
             real("seconds_final", r.secondsFinal),
             real("seconds_count", r.secondsCount),
+            real("seconds_layout", r.secondsLayout),
             real("peak_rss_mb", r.peakRssMb),
             real("max_error_accepted", r.maxErrorAccepted),
             integer("ranks", r.ranks),
