@@ -31,6 +31,28 @@ TEST(BlockOrder, SortsByZThenYThenXWithoutDuplicates)
     }
 }
 
+// The blocks that sample a leaf (samplingBlock) are exactly those whose sampled leaves (sampledLeaf)
+// include it, found by trying every block around the leaf, also below zero.
+TEST(BlockOrder, SamplingBlocksAreTheBlocksWhoseSamplesReadTheLeaf)
+{
+    for (const BlockOrigin leaf : {BlockOrigin{0, 0, 0}, BlockOrigin{-8, 16, -24}, BlockOrigin{40, -8, 8}}) {
+        std::set<BlockOrigin> expected, found;
+        for (int x = -24; x <= 24; x += 8)
+            for (int y = -24; y <= 24; y += 8)
+                for (int z = -24; z <= 24; z += 8) {
+                    const BlockOrigin b{leaf[0] + x, leaf[1] + y, leaf[2] + z};
+                    for (int d = 0; d < 8; ++d)
+                        if (sampledLeaf(b, d) == leaf) expected.insert(b);
+                }
+        for (int d = 0; d < 8; ++d) {
+            found.insert(samplingBlock(leaf, d));
+            EXPECT_EQ(sampledLeaf(samplingBlock(leaf, d), d), leaf) << d;
+        }
+        EXPECT_EQ(found, expected);
+        EXPECT_EQ(samplingBlock(leaf, 0), leaf);
+    }
+}
+
 // Every cell whose corners lie on both sides of the iso-value is in a listed block, found by a dense
 // scan of the grid's values (the block of a cell is its corner rounded down to a multiple of 8).
 TEST(BlockOrder, CoversEveryStraddlingCell)

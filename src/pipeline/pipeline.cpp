@@ -154,7 +154,6 @@ public:
     void listBlocks();
     void splitSlabs();
     void keepOwnLeaves();
-    void keepLeavesIn(size_t begin, size_t end);
     void countFacesForTarget();
     void agreeAmongRanks(const std::string& error);
     void setTarget();
@@ -330,22 +329,20 @@ void PipelineRun::keepOwnLeaves()
 {
     const double start = mClock.seconds();
     const auto [begin, end] = rankBlocks();
-    keepLeavesIn(begin, end);
+    std::function<bool(const BlockOrigin&)> keep;  // empty: every leaf (one process)
+    if (begin != 0 || end != mBlocks.size()) {
+        const auto within = [&, begin = begin, end = end](const BlockOrigin& b) {
+            return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
+        };
+        keep = [within](const BlockOrigin& leaf) {
+            for (int d = 0; d < 8; ++d)
+                if (within(samplingBlock(leaf, d))) return true;
+            return false;
+        };
+    }
+    mVol->keepLeaves(keep);
     // Each rank lays out its own share: the scaling model divides it among workers.
     mResult.report.secondsLayout = mClock.seconds() - start;
-}
-
-void PipelineRun::keepLeavesIn(size_t begin, size_t end)
-{
-    if (begin == 0 && end == mBlocks.size()) return mVol->keepLeaves({});
-    const auto within = [&](const BlockOrigin& b) {
-        return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
-    };
-    mVol->keepLeaves([&](const BlockOrigin& leaf) {
-        for (int d = 0; d < 8; ++d)
-            if (within({leaf[0] - 8 * (d & 1), leaf[1] - 8 * ((d >> 1) & 1), leaf[2] - 8 * ((d >> 2) & 1)})) return true;
-        return false;
-    });
 }
 
 // Ranks agree that each has the same block list before the tree: a rank that could not start

@@ -91,8 +91,8 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
     for (size_t i = 0; i < leaves; ++i) {
         const BlockOrigin o = blocks[i];
         for (int d = 1; d < 8; ++d) {
-            const openvdb::Coord low(o[0] - 8 * (d & 1), o[1] - 8 * ((d >> 1) & 1), o[2] - 8 * ((d >> 2) & 1));
-            if (!tree.probeConstLeaf(low)) blocks.push_back({low.x(), low.y(), low.z()});
+            const BlockOrigin low = samplingBlock(o, d);
+            if (!tree.probeConstLeaf(openvdb::Coord(low[0], low[1], low[2]))) blocks.push_back(low);
         }
     }
     // Tiles: faces where the constant region across is on the other side of the iso-value.

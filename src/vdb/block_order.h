@@ -27,6 +27,13 @@ inline BlockOrigin sampledLeaf(const BlockOrigin& o, int d)
     return {o[0] + 8 * (d & 1), o[1] + 8 * ((d >> 1) & 1), o[2] + 8 * ((d >> 2) & 1)};
 }
 
+// The other way: block d (0..7) of those that sample the leaf at `leaf`, the leaf's own block for d = 0
+// (sampledLeaf(samplingBlock(leaf, d), d) == leaf).
+inline BlockOrigin samplingBlock(const BlockOrigin& leaf, int d)
+{
+    return {leaf[0] - 8 * (d & 1), leaf[1] - 8 * ((d >> 1) & 1), leaf[2] - 8 * ((d >> 2) & 1)};
+}
+
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 
