@@ -7,8 +7,8 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
   setup    : opening the file, the topology and the block list; every rank repeats it (serial). For
              a face target, counting the faces: each rank counts its own slabs (divided by W). Laying
              out the leaves (seconds_layout): each rank its own slabs' (divided by W; the pass that
-             deletes the other leaves, which every rank makes, is not in the model: about 0.05 s a rank
-             on the 2 GB gyroid, docs/perf.md).
+             deletes the other leaves, which every rank makes, is not in the model: not timed apart,
+             about 0.05 s a rank on the 2 GB gyroid by difference, docs/perf.md).
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
