@@ -327,6 +327,51 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_EQ(home.points, travelled.points);
 }
 
+TEST(Decimator, AParkedNodeGoesOnWithItsSettingsAndQueue)
+{
+    // A finished node of the merge tree is parked while it waits (its mesh moved out into a piece,
+    // the decimator emptied) and absorbs the piece back before its join. Under an error bound, with a
+    // relaxed normal turn and a voxel area: the same work counted, the same faces and closed, and the
+    // bound still holding after the join (a decimator that lost its settings would collapse past it).
+    struct Result {
+        Mesh mesh;
+        QueueWork work;
+        double maxError = 0;
+    };
+    auto run = [](bool parked) {
+        const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+        Decimator lower, upper;
+        for (Decimator* d : {&lower, &upper}) {
+            d->setMaxError(0.05);
+            d->setVoxelArea(0.25);
+            d->setMaxNormalTurn(0.0);
+        }
+        lower.addBlock(halves[0]);
+        upper.addBlock(halves[1]);
+        lower.decimateTo(0);
+        upper.decimateTo(0);
+        if (parked) {
+            const QueueWork before = lower.work();
+            MeshPiece piece = lower.park();
+            EXPECT_EQ(lower.faceCount(), 0u);
+            EXPECT_EQ(lower.work().pops, before.pops);
+            lower.absorb(std::move(piece));
+        }
+        lower.absorb(upper.takePiece());
+        lower.finalizeRemaining();
+        lower.decimateTo(0);
+        return Result{lower.mesh(), lower.work(), lower.maxErrorAccepted()};
+    };
+    const Result home = run(false), parked = run(true);
+    std::printf("error bound 0.05: %zu faces without parking, %zu parked; largest error %.4f / %.4f\n",
+                home.mesh.triangles.size(), parked.mesh.triangles.size(), home.maxError, parked.maxError);
+    EXPECT_LE(parked.maxError, 0.05);
+    EXPECT_GT(parked.mesh.triangles.size(), 100u) << "the bound stops the collapses well above a handful of faces";
+    EXPECT_NEAR(double(parked.mesh.triangles.size()), double(home.mesh.triangles.size()), 0.02 * double(home.mesh.triangles.size()));
+    EXPECT_NEAR(double(parked.work.collapses), double(home.work.collapses), 0.02 * double(home.work.collapses));
+    testing::expectClosedOutward(parked.mesh, false, "parked");
+}
+
 TEST(Decimator, SealingTheOpenVerticesBetweenBlocksChangesNothing)
 {
     // A finished node keeps its open vertices sorted (seal); a block added after that moves them back

@@ -433,6 +433,30 @@ MeshPiece Decimator::takePiece()
     return piece;
 }
 
+MeshPiece Decimator::park()
+{
+    Decimator settings;
+    settings.mMinNormalCos = mMinNormalCos;
+    settings.mMinPlaneWeight = mMinPlaneWeight;
+    settings.mMinVertexWeight = mMinVertexWeight;
+    settings.mMaxError = mMaxError;
+    settings.mMaxErrorAccepted = mMaxErrorAccepted;
+    settings.mAttrWeight2 = mAttrWeight2;
+    settings.mStop = mStop;
+    settings.mWork = mWork;
+    settings.mFinalizations = mFinalizations;
+    // A piece's refused pairs come back as unchanged since their refusal: those whose faces changed
+    // meanwhile (the next pass would retry them) go back to the queue now.
+    retryRefused([&](const Refused& r) { return ringsChanged(r); });
+    // The queue's cold entries (coolFrom) go back outside the heap as the piece is absorbed again.
+    Candidate bar;
+    const bool cooled = mHeap.coldBar(bar);
+    MeshPiece piece = takePiece();
+    *this = std::move(settings);
+    if (cooled) mHeap.coolFrom(bar);
+    return piece;
+}
+
 void Decimator::absorb(MeshPiece&& piece)
 {
     const size_t n = piece.vertices.size();

@@ -101,6 +101,9 @@ public:
     // Moves the mesh out into a piece for a merge (dead queue entries dropped first); this decimator
     // is left empty. Each part is freed as soon as it is copied: the merges are the peak of a run.
     MeshPiece takePiece();
+    // The same, but this decimator keeps its settings and counts (normal turn, voxel area, error
+    // bound, attribute weight, interrupter, work done), so absorbing the piece back continues it.
+    MeshPiece park();
     // Adds a piece's mesh to this one (slab merge). Open vertices with the same edge key are welded
     // and their quadrics summed; the piece is consumed. Its queued edges come along; edges at welded
     // vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).

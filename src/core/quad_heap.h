@@ -109,6 +109,13 @@ public:
         mEnd = kept;
     }
 
+    // The bar of coolFrom, if entries wait outside the heap.
+    bool coldBar(T& bar) const
+    {
+        if (mHasCold) bar = mColdFrom;
+        return mHasCold;
+    }
+
     void append(const T& x)
     {
         if (goesCold(x)) {

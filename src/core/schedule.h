@@ -88,6 +88,7 @@ public:
     // The last pass over the whole (merged) surface: every vertex is final now.
     void finish(uint64_t targetFaces, uint64_t facesGenerated, uint64_t& unfinalized)
     {
+        unpark();
         mFinished = true;
         mFacesGenerated = facesGenerated;  // the whole surface's, merged slabs included
         mAbsorbedFaces = 0;
@@ -175,6 +176,7 @@ public:
     // This node's mesh and numbers, for its parent in the merge tree; the integrator is left empty.
     SlabPiece takePiece()
     {
+        unpark();
         mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
         mStats.work += mDec.work() - mWorkSeen;
         mWorkSeen = {};  // the decimator is left empty, its count at zero
@@ -189,11 +191,23 @@ public:
     // as the pass leaves it: the caller compacts a node that goes on up the tree.
     void absorbSlab(SlabPiece&& sibling, const std::function<bool(EdgeKey)>& closes)
     {
+        unpark();
         mDec.absorb(std::move(sibling.mesh));
         mDec.finalizeOpen(closes);
         mAbsorbedFaces += sibling.facesGenerated;
         mAbsorbed.add(sibling.stats);
         decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+    }
+
+    // A finished left child of the merge tree, until its sibling is done (near the end of a run the
+    // nodes of the tree's left spine wait for the last slabs): where parks() says so, its mesh is held
+    // as a piece, 12 bytes a face and 112 a vertex against 24 and 120 with adjacency, without the slots
+    // of dead faces and vertices. Every left child goes through here once before its join, waiting or
+    // not, so the mesh does not depend on which thread or rank finished first; absorbSlab takes the
+    // piece back.
+    void park()
+    {
+        if (!mParked && parks()) mParked = std::make_unique<MeshPiece>(mDec.park());
     }
 
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }
@@ -226,6 +240,19 @@ private:
     // records stay in cache, large enough that a region is more than its boundary (docs/perf.md).
     static constexpr uint64_t kRegionFaces = 2000;
 
+    // Parked where the open seams are at least an eighth of the vertices: at low rates (R = 0.02 on
+    // noise 448^3 every node, 14-56 % open) the full-resolution seams are most of what waits, and the
+    // run's peak is the waiting nodes'; at high rates the large nodes near the root (2-13 % open at
+    // R = 0.2) hold a decimated interior, the peak is the root's own mesh, and a copy there only costs
+    // time and the unpark's transient (docs/perf.md).
+    bool parks() const { return 8 * mDec.openVertices() >= mDec.vertexCount(); }
+    void unpark()
+    {
+        if (!mParked) return;
+        mDec.absorb(std::move(*mParked));
+        mParked.reset();
+    }
+
     void decimate(uint64_t target, size_t regions = 1)
     {
         DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target, mSlab};
@@ -241,6 +268,7 @@ private:
     uint64_t mBatch, mDefer;
     uint32_t mSlab;
     Decimator mDec;
+    std::unique_ptr<MeshPiece> mParked;  // park()
     SlabStats mStats;
     bool mInitial = false;
     bool mFinished = false;  // finish() ran: the mesh is at its final target

@@ -434,6 +434,7 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
                     const auto [pl, pr] = parentNode(l, r, nl, nr);
                     const size_t pm = mergeSplit(pl, pr);
                     const bool isLeft = nl == pl;
+                    if (isLeft) mine->park();  // before it may wait: joinLevel parks it otherwise
                     std::unique_ptr<Integrator> sibling;
                     {
                         std::lock_guard<std::mutex> lock(waitingMutex);
@@ -488,6 +489,7 @@ void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, s
 
 void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
 {
+    left.park();  // every left child is parked once before its join, whether it waited or not
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
     if (absorbsLater(l, r)) left.decimator().compactQueue();
