@@ -210,6 +210,13 @@ public:
         if (!mParked && parks()) mParked = std::make_unique<MeshPiece>(mDec.park());
     }
 
+    // Parked where the open seams are at least an eighth of the vertices: at low rates (R = 0.02 on
+    // noise 448^3 every node, 14-56 % open) the full-resolution seams are most of what waits, and the
+    // run's peak is the waiting nodes'; at high rates the large nodes near the root (2-13 % open at
+    // R = 0.2) hold a decimated interior, the peak is the root's own mesh, and a copy there only costs
+    // time and the unpark's transient (docs/perf.md).
+    bool parks() const { return 8 * mDec.openVertices() >= mDec.vertexCount(); }
+
     uint64_t facesGenerated() const { return mFacesGenerated + mAbsorbedFaces; }
     bool finished() const { return mFinished; }
     size_t faceCount() const { return mDec.faceCount(); }
@@ -240,12 +247,6 @@ private:
     // records stay in cache, large enough that a region is more than its boundary (docs/perf.md).
     static constexpr uint64_t kRegionFaces = 2000;
 
-    // Parked where the open seams are at least an eighth of the vertices: at low rates (R = 0.02 on
-    // noise 448^3 every node, 14-56 % open) the full-resolution seams are most of what waits, and the
-    // run's peak is the waiting nodes'; at high rates the large nodes near the root (2-13 % open at
-    // R = 0.2) hold a decimated interior, the peak is the root's own mesh, and a copy there only costs
-    // time and the unpark's transient (docs/perf.md).
-    bool parks() const { return 8 * mDec.openVertices() >= mDec.vertexCount(); }
     void unpark()
     {
         if (!mParked) return;

@@ -392,6 +392,7 @@ Levels PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
     Levels left;
     try {
         left = rankSubtree(l, m, a, share.leftEnd);
+        for (auto& level : left) level->park();  // while the right child's rank works
     } catch (...) {
         // The right child's rank waits until its node is taken: take it (or its error) before leaving.
         try {
@@ -492,7 +493,7 @@ void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_
     left.park();  // every left child is parked once before its join, whether it waited or not
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
-    if (absorbsLater(l, r)) left.decimator().compactQueue();
+    if (absorbsLater(l, r) && !left.parks()) left.decimator().compactQueue();
 }
 
 // Whether node [l, r) of the tree absorbs its sibling later (a left child): its queue grows by the
@@ -553,7 +554,8 @@ Levels PipelineRun::extractSlab(size_t si)
     if (tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     integ->finishSlab();
     // Dead entries are dropped before the slab absorbs its sibling or is copied for a coarser level.
-    if (absorbsLater(si, si + 1) || mOpt.lods.size() > 1) dec.compactQueue();
+    // (A parked node's piece leaves them behind itself.)
+    if ((absorbsLater(si, si + 1) && !integ->parks()) || mOpt.lods.size() > 1) dec.compactQueue();
     Levels levels;
     levels.push_back(std::move(integ));
     // A LOD chain's coarser levels continue from the finer one here, slab by slab, in parallel with
