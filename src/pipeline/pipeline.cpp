@@ -490,7 +490,7 @@ void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, s
 
 void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
 {
-    left.park();  // every left child is parked once before its join, whether it waited or not
+    left.park();  // every left child goes through park() once before its join, waiting or not
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
     if (absorbsLater(l, r) && !left.parks()) left.decimator().compactQueue();
