@@ -14,11 +14,18 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
 output face of the subtree (measured bytes per rank / faces, docs/scale.md).
-Prints a table of W -> modelled seconds and speed-up and the critical path at 16 workers, the speed-up
-if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count), and writes
-an SVG plot.
+Threads (one process, `-j W`), modelled as pipeline.cpp's localSubtree runs them: the slabs start in order,
+each on the first free thread; the thread that finishes a node's second child joins the node at once and climbs
+on; a thread whose node waits for its sibling takes the next slab. The set-up runs once (the count and the
+layout divided among the threads), then the final pass and the write. The node seconds of a `-j 1` run carry
+no contention between threads (memory bandwidth, allocator): compare the model at 2 threads with the wall of
+a measured `-j 2` run.
+Prints a table of W -> modelled seconds and speed-up (ranks and threads) and the critical path at 16 workers,
+the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
+and writes an SVG plot.
 Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
 """
+import heapq
 import json
 import sys
 
@@ -80,15 +87,59 @@ def model(report, wall, even=False):
     rows = []
     for w in WORKERS:
         t = setup + (count + layout) / min(w, slabs) + parallel(0, slabs, 0, w)[0] + final
-        rows.append((w, t, one / t))
-    return setup + count + layout, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1]
+        threads = setup + (count + layout) / min(w, slabs) + threads_tree(node, slabs, w)[0] + final
+        rows.append((w, t, one / t, threads, one / threads))
+    return (setup + count + layout, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1],
+            threads_tree(node, slabs, PATH_WORKERS)[1])
+
+
+def threads_tree(node, slabs, workers):
+    """Seconds from the first slab's start to the root's end with `workers` threads (see the docstring),
+    and the critical path: the last slab to finish a node that then climbed to the root, and the joins
+    on its way."""
+    parent = {}
+
+    def build(l, r):
+        if r - l < 2:
+            return
+        m = merge_split(l, r)
+        parent[(l, m)] = parent[(m, r)] = (l, r)
+        build(l, m)
+        build(m, r)
+
+    build(0, slabs)
+    done = {}
+    events = []  # (time, node, path): a node finishes on the thread that made it
+    nxt = 0
+
+    def start(t, si):
+        heapq.heappush(events, (t + node[(si, si + 1)], (si, si + 1), [f"slab {si} {t:.2f}-{t + node[(si, si + 1)]:.2f} s"]))
+
+    for _ in range(min(workers, slabs)):
+        start(0.0, nxt)
+        nxt += 1
+    while events:
+        t, (l, r), path = heapq.heappop(events)
+        if (l, r) == (0, slabs):
+            return t, path
+        p = parent[(l, r)]
+        m = merge_split(*p)
+        sibling = (m, p[1]) if l == p[0] else (p[0], m)
+        if sibling in done:  # this thread joins the parent at once
+            heapq.heappush(events, (t + node[p], p, path + [f"join [{p[0]}, {p[1]}) {node[p]:.2f} s"]))
+            continue
+        done[(l, r)] = t
+        if nxt < slabs:  # this thread takes the next slab
+            start(t, nxt)
+            nxt += 1
+    raise RuntimeError("the tree did not reach its root")
 
 
 def svg(curves, path):
     W, H, L, B = 560, 380, 60, 50
     import math
     xmax = math.log2(WORKERS[-1])
-    ymax = max(max(s for _, _, s in rows) for _, rows in curves) * 1.1
+    ymax = max(max(max(row[2], row[4]) for row in rows) for _, rows in curves) * 1.1
     ymax = max(ymax, 16)
 
     def x(w):
@@ -112,9 +163,11 @@ def svg(curves, path):
     for i, (label, rows) in enumerate(curves):
         c = colours[i % len(colours)]
         out.append(f'<polyline fill="none" stroke="{c}" stroke-width="2" points="' +
-                   " ".join(f"{x(w):.1f},{y(s):.1f}" for w, _, s in rows) + '"/>')
-        out.append(f'<text x="{L+10}" y="{36+16*i}" fill="{c}">{label}</text>')
-    out.append(f'<text x="{(W+L)/2}" y="{H-12}" text-anchor="middle">workers (ranks of one thread)</text>')
+                   " ".join(f"{x(row[0]):.1f},{y(row[2]):.1f}" for row in rows) + '"/>')
+        out.append(f'<polyline fill="none" stroke="{c}" stroke-width="2" stroke-dasharray="6 3" points="' +
+                   " ".join(f"{x(row[0]):.1f},{y(row[4]):.1f}" for row in rows) + '"/>')
+        out.append(f'<text x="{L+10}" y="{36+16*i}" fill="{c}">{label} (solid: ranks, dashed: threads)</text>')
+    out.append(f'<text x="{(W+L)/2}" y="{H-12}" text-anchor="middle">workers (ranks of one thread, or threads of one process)</text>')
     out.append(f'<text x="16" y="{H/2}" transform="rotate(-90 16 {H/2})" text-anchor="middle">modelled speed-up</text>')
     out.append('</svg>')
     open(path, "w").write("\n".join(out) + "\n")
@@ -128,16 +181,17 @@ def main(argv):
     for i in range(1, len(argv) - 1, 3):
         report = json.load(open(argv[i]))
         wall, label = float(argv[i + 1]), argv[i + 2]
-        setup, tree, final, rows, critical = model(report, wall)
+        setup, tree, final, rows, critical, thread_path = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
-        print("| workers | modelled seconds | speed-up |")
-        print("|---|---|---|")
-        for w, t, s in rows:
-            print(f"| {w} | {t:.2f} | {s:.1f}x |")
-        print(f"critical path at {PATH_WORKERS} workers: " + ", then ".join(critical))
-        even = {w: x for w, _, x in model(report, wall, even=True)[3]}
-        print("slabs of equal work instead (each the mean of the measured slabs): " +
-              ", ".join(f"{w} workers {even[w]:.1f}x" for w in (8, 16, 32, 64)))
+        print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up |")
+        print("|---|---|---|---|---|")
+        for w, t, s, tt, ts in rows:
+            print(f"| {w} | {t:.2f} | {s:.1f}x | {tt:.2f} | {ts:.1f}x |")
+        print(f"critical path at {PATH_WORKERS} ranks: " + ", then ".join(critical))
+        print(f"critical path at {PATH_WORKERS} threads (after the set-up): " + ", then ".join(thread_path))
+        even = {row[0]: row for row in model(report, wall, even=True)[3]}
+        print("slabs of equal work instead (each the mean of the measured slabs), ranks / threads: " +
+              ", ".join(f"{w} workers {even[w][2]:.1f}x / {even[w][4]:.1f}x" for w in (8, 16, 32, 64)))
         print()
         curves.append((label, rows))
     svg(curves, out)

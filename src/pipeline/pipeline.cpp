@@ -166,7 +166,6 @@ private:
     Levels localSubtree(size_t l, size_t r);
     void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
     void joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
-    bool absorbsLater(size_t l, size_t r) const;
     bool wholeTree(size_t l, size_t r) const { return l == 0 && r == mSlabs.size(); }
     Levels extractSlab(size_t si);
     void watch(Decimator& dec);
@@ -392,7 +391,9 @@ Levels PipelineRun::rankSubtree(size_t l, size_t r, size_t a, size_t b)
     Levels left;
     try {
         left = rankSubtree(l, m, a, share.leftEnd);
+        const double start = mClock.seconds();
         for (auto& level : left) level->park();  // while the right child's rank works
+        timed(l, m, start);
     } catch (...) {
         // The right child's rank waits until its node is taken: take it (or its error) before leaving.
         try {
@@ -435,7 +436,11 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
                     const auto [pl, pr] = parentNode(l, r, nl, nr);
                     const size_t pm = mergeSplit(pl, pr);
                     const bool isLeft = nl == pl;
-                    if (isLeft) mine->park();  // before it may wait: joinLevel parks it otherwise
+                    if (isLeft) {  // before it may wait: joinLevel parks it otherwise
+                        const double start = mClock.seconds();
+                        mine->park();
+                        timed(nl, nr, start);
+                    }
                     std::unique_ptr<Integrator> sibling;
                     {
                         std::lock_guard<std::mutex> lock(waitingMutex);
@@ -468,7 +473,8 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
     return whole;
 }
 
-// A chain's levels join one by one: a node's seconds are the sum over its levels.
+// A node's seconds: its slab's extraction or its join, and its parking (park()) if it is a left child;
+// a chain's levels join one by one, so theirs add up.
 void PipelineRun::timed(size_t l, size_t r, double start)
 {
     const double seconds = mClock.seconds() - start;
@@ -493,18 +499,6 @@ void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_
     left.park();  // every left child goes through park() once before its join, waiting or not
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
     left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
-    if (absorbsLater(l, r) && !left.parks()) left.decimator().compactQueue();
-}
-
-// Whether node [l, r) of the tree absorbs its sibling later (a left child): its queue grows by the
-// sibling's, so dead entries go first. A right child's queue is drained by its parent's take, which
-// drops them itself, and the root's only serves the final pass, which skips them as it pops:
-// compacting there (the queue reordered as a heap) took 0.45 s of the serial top of the tree on noise
-// 448^3 at R = 0.2 and 0.17 s for the root's right child. Dead entries change no collapse either way.
-bool PipelineRun::absorbsLater(size_t l, size_t r) const
-{
-    if (wholeTree(l, r)) return false;
-    return parentNode(0, mSlabs.size(), l, r).first == l;
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
@@ -553,9 +547,9 @@ Levels PipelineRun::extractSlab(size_t si)
     });
     if (tbb::is_current_task_group_canceling()) throw Cancelled("cancelled");
     integ->finishSlab();
-    // Dead entries are dropped before the slab absorbs its sibling or is copied for a coarser level.
-    // (A parked node's piece leaves them behind itself.)
-    if ((absorbsLater(si, si + 1) && !integ->parks()) || mOpt.lods.size() > 1) dec.compactQueue();
+    // Dead entries are dropped before the slab is copied for a coarser level (a left child's as it
+    // parks: Integrator::park).
+    if (mOpt.lods.size() > 1) dec.compactQueue();
     Levels levels;
     levels.push_back(std::move(integ));
     // A LOD chain's coarser levels continue from the finer one here, slab by slab, in parallel with

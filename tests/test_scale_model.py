@@ -1,0 +1,74 @@
+#!/usr/bin/python3
+"""benchmarks/scale_model.py against schedules worked out by hand (docs/scale.md reads its numbers).
+
+A report of 4 slabs and 3 joins: the tree [0, 4) -> [0, 2) + [2, 4), each of two slabs.
+  * Threads (one process): slabs start in order on the first free thread, the thread that finishes a
+    node's second child joins it at once, a thread whose node waits takes the next slab.
+  * Ranks of one thread: rank shares in proportion to slabs, a node on one rank is the sum of its
+    nodes, on more ranks max(left, right + transfer) + its join.
+Usage: test_scale_model.py path/to/benchmarks/scale_model.py
+"""
+import importlib.util
+import sys
+import unittest
+
+spec = importlib.util.spec_from_file_location("scale_model", sys.argv.pop(1))
+scale_model = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(scale_model)
+
+
+def report(slab_seconds, join_seconds):
+    """A -j 1 report of a 4-slab tree; joins in the order [0, 2), [2, 4), [0, 4)."""
+    nodes = [(i, i + 1) for i in range(4)] + [(0, 2), (2, 4), (0, 4)]
+    seconds = list(slab_seconds) + list(join_seconds)
+    total = sum(seconds)
+    return {
+        "tree_first_slab": [l for l, _ in nodes], "tree_end_slab": [r for _, r in nodes], "tree_seconds": seconds,
+        "slabs": 4, "faces_out": 0, "seconds": total + 1.0, "seconds_slabs": total, "seconds_final": 0.25,
+    }
+
+
+def nodes_of(rep):
+    return {(l, r): s for l, r, s in zip(rep["tree_first_slab"], rep["tree_end_slab"], rep["tree_seconds"])}
+
+
+class ThreadModel(unittest.TestCase):
+    def test_one_thread_is_the_sum(self):
+        rep = report([1, 1, 1, 1], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 4, 1)[0], 5.5)
+
+    def test_two_threads_equal_slabs(self):
+        # t=1: slabs 0 and 1 done; the second joins [0, 2) until 1.5, the first takes slab 2 (until 2);
+        # slab 3 from 1.5 to 2.5, then [2, 4) until 3.0 and the root until 3.5.
+        rep = report([1, 1, 1, 1], [0.5, 0.5, 0.5])
+        t, path = scale_model.threads_tree(nodes_of(rep), 4, 2)
+        self.assertAlmostEqual(t, 3.5)
+        self.assertEqual(len(path), 3)  # slab 3, then [2, 4), then the root
+        self.assertTrue(path[0].startswith("slab 3"))
+
+    def test_two_threads_one_long_slab(self):
+        # Slab 0 takes 3 s; the other thread makes slabs 1, 2, 3 meanwhile (until 3), then [0, 2) and
+        # [2, 4) run at once (3.0-3.5) and the root follows (until 4.0).
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 4, 2)[0], 4.0)
+
+    def test_more_threads_than_slabs(self):
+        rep = report([1, 2, 1, 1], [0.5, 0.25, 0.5])
+        self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 4, 64)[0], 3.0)
+
+
+class RankModel(unittest.TestCase):
+    def test_two_ranks(self):
+        # Rank 0: slabs 0, 1 and [0, 2) = 4.5 s; rank 1: 2.5 s plus its transfer (no faces: 0); root 0.5.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        self.assertAlmostEqual(tree, 7.5)
+        self.assertAlmostEqual(final, 0.75)
+        by_workers = {row[0]: row for row in rows}
+        self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
+        self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final)  # threads, as above
+        self.assertAlmostEqual(by_workers[1][2], 1.0)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
