@@ -64,6 +64,7 @@ public:
     {
         const uint64_t incoming = b.triangles.size();
         if (incoming == 0 && b.keys.empty()) return;
+        mCompacted = false;
         if (mInitial) {
             // Initial phase: let the intermediate mesh grow to B faces, then decimate it at rate R_i,
             // until the regular target catches up (avoids over-decimating the first batches). Never
@@ -154,7 +155,7 @@ public:
         const uint64_t target = c->batchTarget(double(c->facesGenerated()));
         const uint64_t excess = c->mDec.faceCount() > target ? c->mDec.faceCount() - target : 0;
         c->decimate(target, std::max<uint64_t>(1, excess / kRegionFaces));
-        c->mDec.compactQueue();
+        c->compactQueue();
         c->mStats.maxErrorAccepted = c->mDec.maxErrorAccepted();
         return c;
     }
@@ -214,7 +215,16 @@ public:
         if (mReadyToWait) return;
         mReadyToWait = true;
         if (parks()) mParked = std::make_unique<MeshPiece>(mDec.park());
-        else mDec.compactQueue();
+        else compactQueue();
+    }
+
+    // Drops the queue's dead entries; a second call before the next pass finds none and does nothing
+    // (a LOD chain's slab is compacted before its copies and may come here again as a left child).
+    void compactQueue()
+    {
+        if (mCompacted) return;
+        mDec.compactQueue();
+        mCompacted = true;
     }
 
     // Parked where the open seams are at least an eighth of the vertices: at low rates (R = 0.02 on
@@ -256,6 +266,7 @@ private:
 
     void unpark()
     {
+        mCompacted = false;  // the queue's order and the piece's entries are the absorb's
         if (!mParked) return;
         mDec.absorb(std::move(*mParked));
         mParked.reset();
@@ -263,6 +274,7 @@ private:
 
     void decimate(uint64_t target, size_t regions = 1)
     {
+        mCompacted = false;
         DecimationRecord rec{mFacesGenerated, mDec.faceCount(), 0, mDec.uncontractibleFaces(), target, mSlab};
         mStats.maxUncontractibleFaces = std::max<uint64_t>(mStats.maxUncontractibleFaces, rec.uncontractible);
         mDec.decimateRegionByRegion(target, regions);
@@ -278,6 +290,7 @@ private:
     Decimator mDec;
     std::unique_ptr<MeshPiece> mParked;  // park()
     bool mReadyToWait = false;           // park() ran since this node was made
+    bool mCompacted = false;             // compactQueue() ran, and no pass or absorb since
     SlabStats mStats;
     bool mInitial = false;
     bool mFinished = false;  // finish() ran: the mesh is at its final target

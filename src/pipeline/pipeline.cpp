@@ -549,7 +549,7 @@ Levels PipelineRun::extractSlab(size_t si)
     integ->finishSlab();
     // Dead entries are dropped before the slab is copied for a coarser level (a left child's as it
     // parks: Integrator::park).
-    if (mOpt.lods.size() > 1) dec.compactQueue();
+    if (mOpt.lods.size() > 1) integ->compactQueue();
     Levels levels;
     levels.push_back(std::move(integ));
     // A LOD chain's coarser levels continue from the finer one here, slab by slab, in parallel with
