@@ -173,7 +173,9 @@ private:
     void meshBlock(size_t si, size_t i, BlockMesh& m) const;
     void integrateBlock(Integrator& integ, const BlockMesh& m);
     void releaseSampledLeaves(size_t i);
-    size_t blockIndex(const BlockOrigin& o) const;
+    size_t lowerBoundFrom(const BlockOrigin& o, size_t from) const;
+    template <typename F>
+    void forSampledLeaves(size_t i, F&& f) const;
     std::pair<size_t, size_t> rankBlocks() const;
     std::vector<char> rankMessage(std::vector<SlabPiece>&& levels) const;
     std::vector<SlabPiece> readRankMessage(const std::vector<char>& bytes);
@@ -614,18 +616,35 @@ std::pair<size_t, size_t> PipelineRun::rankBlocks() const
     return l == r ? std::pair<size_t, size_t>{0, 0} : std::pair<size_t, size_t>{mSlabs[l].begin, mSlabs[r - 1].end};
 }
 
-// Index of the block at origin `o` in the list, or the list's size if it is not there.
-size_t PipelineRun::blockIndex(const BlockOrigin& o) const
+// The first block of the list not ordered before `o`, searched from `from`, which is not ordered
+// after `o`: galloping on, a few steps for a block nearby where a search of the whole list took 17.
+size_t PipelineRun::lowerBoundFrom(const BlockOrigin& o, size_t from) const
 {
-    const auto it = std::lower_bound(mBlocks.begin(), mBlocks.end(), o, mOrder);
-    return it != mBlocks.end() && *it == o ? size_t(it - mBlocks.begin()) : mBlocks.size();
+    size_t lo = from, step = 1;
+    while (lo + step < mBlocks.size() && mOrder(mBlocks[lo + step], o)) {
+        lo += step;
+        step *= 2;
+    }
+    const auto end = mBlocks.begin() + std::ptrdiff_t(std::min(mBlocks.size(), lo + step + 1));
+    return size_t(std::lower_bound(mBlocks.begin() + std::ptrdiff_t(lo), end, o, mOrder) - mBlocks.begin());
 }
 
-// f(leaf, d) for the leaves block o samples (block_order.h's sampledLeaf).
+// f(leaf, d, j) for the leaves block i samples (block_order.h's sampledLeaf), j their index in the
+// list or the list's size where a leaf is no block. A leaf lies at or above block i, so not before it
+// in the block order, and each is searched from the one it lies +x, +y or +z of (d without its lowest
+// bit): mostly the next block or a row on; only +z alone is a band's layer on.
 template <typename F>
-static void forSampledLeaves(const BlockOrigin& o, F&& f)
+void PipelineRun::forSampledLeaves(size_t i, F&& f) const
 {
-    for (int d = 0; d < 8; ++d) f(sampledLeaf(o, d), d);
+    std::array<size_t, 8> at{};
+    at[0] = i;
+    f(mBlocks[i], 0, i);
+    for (int d = 1; d < 8; ++d) {
+        const BlockOrigin leaf = sampledLeaf(mBlocks[i], d);
+        at[size_t(d)] = lowerBoundFrom(leaf, at[size_t(d & (d - 1))]);
+        const size_t j = at[size_t(d)];
+        f(leaf, d, j < mBlocks.size() && mBlocks[j] == leaf ? j : mBlocks.size());
+    }
 }
 
 void PipelineRun::countLeafSamplers(size_t begin, size_t end)
@@ -638,8 +657,7 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const size_t slab = slabOf(i);
-            forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf, int d) {
-                const size_t j = blockIndex(leaf);
+            forSampledLeaves(i, [&](const BlockOrigin&, int d, size_t j) {
                 if (j < mBlocks.size()) {
                     const bool early = slab + 1 < slabOf(j);
                     mLeafSamplers[j].fetch_add(early ? kEarlySampler + 1 : 1, std::memory_order_relaxed);
@@ -661,8 +679,7 @@ size_t PipelineRun::slabOf(size_t block) const
 void PipelineRun::releaseSampledLeaves(size_t i)
 {
     const uint8_t early = mEarlyReads[i];
-    forSampledLeaves(mBlocks[i], [&](const BlockOrigin& leaf, int d) {
-        const size_t j = blockIndex(leaf);
+    forSampledLeaves(i, [&](const BlockOrigin& leaf, int d, size_t j) {
         const bool isEarly = (early >> d) & 1;
         if (j >= mBlocks.size()) return;
         const uint8_t step = isEarly ? kEarlySampler + 1 : 1;
