@@ -266,7 +266,7 @@ private:
 
     void unpark()
     {
-        mCompacted = false;  // the queue's order and the piece's entries are the absorb's
+        mCompacted = false;  // the piece's entries join the queue
         if (!mParked) return;
         mDec.absorb(std::move(*mParked));
         mParked.reset();
