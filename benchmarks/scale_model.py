@@ -86,11 +86,14 @@ def model(report, wall, even=False):
     one = setup + count + layout + serial(0, slabs) + final
     rows = []
     for w in WORKERS:
-        t = setup + (count + layout) / min(w, slabs) + parallel(0, slabs, 0, w)[0] + final
-        threads = setup + (count + layout) / min(w, slabs) + threads_tree(node, slabs, w)[0] + final
-        rows.append((w, t, one / t, threads, one / threads))
-    return (setup + count + layout, serial(0, slabs), final, rows, parallel(0, slabs, 0, PATH_WORKERS)[1],
-            threads_tree(node, slabs, PATH_WORKERS)[1])
+        start = setup + (count + layout) / min(w, slabs)
+        ranks, ranks_path = parallel(0, slabs, 0, w)
+        threads, threads_path = threads_tree(node, slabs, w)
+        t, tt = start + ranks + final, start + threads + final
+        rows.append((w, t, one / t, tt, one / tt))
+        if w == PATH_WORKERS:
+            paths = ranks_path, threads_path
+    return setup + count + layout, serial(0, slabs), final, rows, paths[0], paths[1]
 
 
 def threads_tree(node, slabs, workers):

@@ -193,7 +193,6 @@ public:
     void absorbSlab(SlabPiece&& sibling, const std::function<bool(EdgeKey)>& closes)
     {
         unpark();
-        mReadyToWait = false;  // a new node: it parks or compacts anew if it is a left child
         mDec.absorb(std::move(sibling.mesh));
         mDec.finalizeOpen(closes);
         mAbsorbedFaces += sibling.facesGenerated;
@@ -212,8 +211,7 @@ public:
     // thread or rank finished first; absorbSlab takes the piece back.
     void park()
     {
-        if (mReadyToWait) return;
-        mReadyToWait = true;
+        if (mParked) return;
         if (parks()) mParked = std::make_unique<MeshPiece>(mDec.park());
         else compactQueue();
     }
@@ -289,7 +287,6 @@ private:
     uint32_t mSlab;
     Decimator mDec;
     std::unique_ptr<MeshPiece> mParked;  // park()
-    bool mReadyToWait = false;           // park() ran since this node was made
     bool mCompacted = false;             // compactQueue() ran, and no pass or absorb since
     SlabStats mStats;
     bool mInitial = false;
