@@ -327,6 +327,95 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_EQ(home.points, travelled.points);
 }
 
+TEST(Decimator, ADecimatorAbsorbedInPlaceGivesThePiecesMesh)
+{
+    // A merge in one process reads the other decimator's arrays in place instead of a piece taken
+    // from it: the same mesh, the same queue work collapse for collapse, and under an error bound the
+    // same drift carried over (the largest accepted error and the faces the bound leaves).
+    struct Result {
+        Mesh mesh;
+        QueueWork work;
+        size_t queuedAfterAbsorb = 0;
+        double maxError = 0;
+    };
+    auto run = [](bool inPlace, double bound) {
+        const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+        Decimator lower, upper;
+        if (bound > 0)
+            for (Decimator* d : {&lower, &upper}) d->setMaxError(bound);
+        lower.addBlock(halves[0]);
+        upper.addBlock(halves[1]);
+        lower.decimateTo(300);
+        upper.decimateTo(300);
+        if (inPlace) lower.absorb(std::move(upper));
+        else lower.absorb(upper.takePiece());
+        EXPECT_EQ(upper.faceCount(), 0u);
+        EXPECT_EQ(upper.vertexCount(), 0u);
+        EXPECT_EQ(upper.queued(), 0u);
+        Result r;
+        r.queuedAfterAbsorb = lower.queued();
+        lower.finalizeRemaining();
+        lower.decimateTo(bound > 0 ? 0 : 120);
+        r.mesh = lower.mesh();
+        r.work = lower.work();
+        r.maxError = lower.maxErrorAccepted();
+        return r;
+    };
+    for (double bound : {0.0, 0.03}) {
+        const Result piece = run(false, bound), inPlace = run(true, bound);
+        std::printf("bound %.2f: %zu faces, %zu queued after the absorb, %llu pops, %llu collapses, largest error %.4f\n",
+                    bound, piece.mesh.triangles.size(), piece.queuedAfterAbsorb, (unsigned long long)piece.work.pops,
+                    (unsigned long long)piece.work.collapses, piece.maxError);
+        EXPECT_GT(piece.work.stale, 0u) << "stale entries cross the merge";
+        EXPECT_EQ(inPlace.mesh.triangles, piece.mesh.triangles);
+        EXPECT_EQ(inPlace.mesh.points, piece.mesh.points);
+        EXPECT_EQ(inPlace.queuedAfterAbsorb, piece.queuedAfterAbsorb);
+        EXPECT_EQ(inPlace.work.pops, piece.work.pops);
+        EXPECT_EQ(inPlace.work.stale, piece.work.stale);
+        EXPECT_EQ(inPlace.work.collapses, piece.work.collapses);
+        EXPECT_EQ(inPlace.maxError, piece.maxError);
+        testing::expectClosedOutward(inPlace.mesh, false, "absorbed in place");
+    }
+}
+
+TEST(Decimator, APieceAbsorbedIntoAnEmptyDecimatorGoesOnAsItsDecimatorWould)
+{
+    // A piece renumbers the live vertices in id order, which keeps every tie of the queue's order;
+    // it drops dead queue entries, keeps stale ones stale, carries the drift under an error bound.
+    // Absorbed into an empty decimator (in place or through the piece), the pass that follows makes
+    // the same collapses as the original decimator going on by itself (under the bound, the drift
+    // decides which): an independent check of what the take keeps.
+    for (double bound : {0.0, 0.15}) {
+        for (bool inPlace : {false, true}) {
+            const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+            Decimator original, taken, fresh;
+            if (bound > 0)
+                for (Decimator* d : {&original, &fresh}) d->setMaxError(bound);
+            original.addBlock(halves[0]);
+            original.finalizeRemaining();
+            original.decimateTo(600);
+            // A pass starts by sending back to the queue the refused pairs whose faces changed since;
+            // a piece's refused pairs count as unchanged (a merge changes no face around them).
+            original.decimateTo(600);
+            taken = original;
+            if (inPlace) fresh.absorb(std::move(taken));
+            else fresh.absorb(taken.takePiece());
+            const QueueWork before = original.work();
+            original.decimateTo(bound > 0 ? 0 : 150);
+            fresh.decimateTo(bound > 0 ? 0 : 150);
+            const QueueWork went = original.work() - before, goes = fresh.work();
+            SCOPED_TRACE(std::string(inPlace ? "in place" : "through a piece") + ", bound " + std::to_string(bound));
+            EXPECT_GT(bound > 0 ? went.collapses : went.stale, 0u);
+            EXPECT_EQ(goes.collapses, went.collapses);
+            EXPECT_EQ(goes.stale, went.stale);
+            EXPECT_EQ(goes.attempts, went.attempts);
+            const Mesh a = original.mesh(), b = fresh.mesh();
+            EXPECT_EQ(b.triangles, a.triangles);
+            EXPECT_EQ(b.points, a.points);
+        }
+    }
+}
+
 TEST(Decimator, AParkedNodeGoesOnWithItsSettingsAndQueue)
 {
     // A finished node of the merge tree is parked while it waits (its mesh moved out into a piece,

@@ -380,56 +380,169 @@ void Decimator::addBlock(const BlockMesh& block)
         }
 }
 
-MeshPiece Decimator::takePiece()
-{
-    MeshPiece piece;
-    // First what needs the vertices' state besides the vertices themselves: the queued edges (with
-    // whether each is stale) and the refused pairs whose ends live. The queue names vertices in no
-    // order (about four entries a vertex): its entries read their ends' new numbers and versions from
-    // one array of 8 bytes a vertex, not from the vertex records and the number map at random.
+// What absorb reads of the other side of a merge, in a piece's numbering (the alive vertices
+// densely, in id order). Each part is read once, in absorb's order, and freed as it is read.
+class Decimator::PieceSource {
+public:
+    explicit PieceSource(MeshPiece& piece) : mPiece(piece) {}
+    size_t vertexCount() const { return mPiece.vertices.size(); }
+    std::vector<std::pair<EdgeKey, uint32_t>> takeOpen() { return std::move(mPiece.open); }
+    const V3& position(uint32_t i) const { return mPiece.vertices[i].p; }
+    const Quadric& quadric(uint32_t i) const { return mPiece.vertices[i].q; }
+    bool final(uint32_t i) const { return mPiece.vertices[i].final; }
+    const float* drift(uint32_t i) const { return i < mPiece.drift.size() ? &mPiece.drift[i] : nullptr; }
+    const AttributeQuadric* attributes(uint32_t i) const
+    {
+        return i < mPiece.attributes.size() ? &mPiece.attributes[i] : nullptr;
+    }
+    void release(uint32_t i) { mPiece.vertices.releaseThrough(i); }
+    size_t queued() const { return mPiece.queue.size(); }
+    template <typename F>
+    void drainQueue(F f)
+    {
+        for (size_t i = 0; i < mPiece.queue.size(); ++i) {
+            const MeshPiece::Queued& c = mPiece.queue[i];
+            f(c.costBits, c.a, c.b, c.stale);
+            mPiece.queue.releaseThrough(i);
+        }
+        mPiece.queue = {};
+    }
+    template <typename F>
+    void drainRefused(F f)
+    {
+        for (const auto& r : mPiece.refused) f(r.a, r.b, r.folds);
+        mPiece.refused = {};
+    }
+    template <typename F>
+    void drainFaces(F f)
+    {
+        for (size_t i = 0; i < mPiece.faces.size(); ++i) {
+            f(mPiece.faces[i]);
+            mPiece.faces.releaseThrough(i);
+        }
+        mPiece = MeshPiece{};
+    }
+
+private:
+    MeshPiece& mPiece;
+};
+
+// The same parts read straight from another decimator's arrays (takePiece, and a merge in one
+// process): the numbering and what is dropped (dead queue entries, refused pairs of dead vertices)
+// decided here once. The decimator is left empty.
+class Decimator::DecimatorSource {
+public:
+    explicit DecimatorSource(Decimator& d) : mDec(d), mDense(d.mMeta.size(), kNone), mQueueable(d.mMeta.size(), {kNone, 0})
+    {
+        for (uint32_t v = 0; v < d.mMeta.size(); ++v)
+            if (d.mMeta[v].alive) {
+                mDense[v] = uint32_t(mIds.size());
+                mIds.push_back(v);
+                if (d.mMeta[v].final) mQueueable[v] = {mDense[v], d.mMeta[v].version};
+            }
+    }
+    ~DecimatorSource() { mDec = Decimator{}; }
+    size_t vertexCount() const { return mIds.size(); }
+    // Open vertices in key order (hash-map order is not part of the output contract).
+    std::vector<std::pair<EdgeKey, uint32_t>> takeOpen()
+    {
+        mDec.seal();
+        std::vector<std::pair<EdgeKey, uint32_t>> open = std::move(mDec.mSealedOpen);
+        for (auto& o : open) o.second = mDense[o.second];
+        return open;
+    }
+    const V3& position(uint32_t i) const { return mDec.mGeom[mIds[i]].p; }
+    const Quadric& quadric(uint32_t i) const { return mDec.mGeom[mIds[i]].q; }
+    bool final(uint32_t i) const { return mDec.mMeta[mIds[i]].final; }
+    const float* drift(uint32_t i) const { return mIds[i] < mDec.mDrift.size() ? &mDec.mDrift[mIds[i]] : nullptr; }
+    const AttributeQuadric* attributes(uint32_t i) const
+    {
+        return mIds[i] < mDec.mAttrQ.size() ? &mDec.mAttrQ[mIds[i]] : nullptr;
+    }
+    // Vertex i and every slot before it are read for the last time (dead slots included).
+    void release(uint32_t i)
+    {
+        for (; mReleased <= mIds[i]; ++mReleased) {
+            mDec.mGeom.releaseThrough(mReleased);
+            mDec.mMeta.releaseThrough(mReleased);
+        }
+    }
+    // Entries of a pair that is no longer two live final vertices are dropped, as dropDeadEntries does.
+    size_t queued() const
+    {
+        size_t n = 0;
+        mDec.mHeap.visit([&](const Candidate& c) { n += keeps(c); });
+        return n;
+    }
+    template <typename F>
+    void drainQueue(F f)
+    {
+        // The queue names vertices in no order (about four entries a vertex): its entries read their
+        // ends' new numbers and versions from one array of 8 bytes a vertex, not from the vertex
+        // records and the number map at random.
+        mDec.mHeap.drain([&](const Candidate& c) {
+            const Renumbered a = mQueueable[c.a()], b = mQueueable[c.b];
+            if (keeps(c)) f(c.costBits(), a.dense, b.dense, a.version + b.version != c.stamp);
+        });
+        mQueueable = {};
+    }
+    // Refused pairs whose ends live.
+    size_t refusedCount() const
+    {
+        size_t n = 0;
+        for (const Refused& r : mDec.mRefused) n += live(r);
+        return n;
+    }
+    template <typename F>
+    void drainRefused(F f)
+    {
+        for (const Refused& r : mDec.mRefused)
+            if (live(r)) f(mDense[r.a], mDense[r.b], r.folds != 0);
+        mDec.mRefused = {};
+    }
+    template <typename F>
+    void drainFaces(F f)
+    {
+        for (size_t i = 0; i < mDec.mFaces.size(); ++i) {
+            const Face& face = mDec.mFaces[i];
+            if (face.alive()) f(std::array<uint32_t, 3>{mDense[face.v[0]], mDense[face.v[1]], mDense[face.v[2]]});
+            mDec.mFaces.releaseThrough(i);
+        }
+    }
+
+private:
     struct Renumbered {
         uint32_t dense, version;  // dense: kNone for a vertex that is dead or not final
     };
-    std::vector<uint32_t> dense(mMeta.size(), UINT32_MAX);
-    std::vector<Renumbered> queueable(mMeta.size(), {kNone, 0});
-    for (uint32_t v = 0, n = 0; v < mMeta.size(); ++v)
-        if (mMeta[v].alive) {
-            dense[v] = n++;
-            if (mMeta[v].final) queueable[v] = {dense[v], mMeta[v].version};
-        }
-    // Entries of a pair that is no longer two live final vertices are dropped, as dropDeadEntries does.
-    mHeap.drain([&](const Candidate& c) {
-        const Renumbered a = queueable[c.a()], b = queueable[c.b];
-        if (a.dense != kNone && b.dense != kNone)
-            piece.queue.emplace_back() = {c.costBits(), a.dense, b.dense, a.version + b.version != c.stamp};
+    bool keeps(const Candidate& c) const { return mQueueable[c.a()].dense != kNone && mQueueable[c.b].dense != kNone; }
+    bool live(const Refused& r) const { return mDense[r.a] != kNone && mDense[r.b] != kNone; }
+
+    Decimator& mDec;
+    std::vector<uint32_t> mDense;  // per slot: the vertex's number here, kNone if dead
+    std::vector<uint32_t> mIds;    // per number: the slot
+    std::vector<Renumbered> mQueueable;
+    uint32_t mReleased = 0;
+};
+
+MeshPiece Decimator::takePiece()
+{
+    MeshPiece piece;
+    DecimatorSource from(*this);
+    // First what needs the vertices' state besides the vertices themselves: the queued edges (with
+    // whether each is stale) and the refused pairs.
+    from.drainQueue([&](uint32_t costBits, uint32_t a, uint32_t b, bool stale) {
+        piece.queue.emplace_back() = {costBits, a, b, stale};
     });
-    queueable = {};
-    const auto live = [&](const Refused& r) { return mMeta[r.a].alive && mMeta[r.b].alive; };
-    size_t refused = 0;
-    for (const Refused& r : mRefused) refused += live(r);
-    piece.refused.reserve(refused);  // exactly: a doubling vector held up to twice the pairs
-    for (const Refused& r : mRefused)
-        if (live(r)) piece.refused.push_back({dense[r.a], dense[r.b], r.folds != 0});
-    mRefused = {};
-    // Open vertices in key order (hash-map order is not part of the output contract).
-    seal();
-    piece.open = std::move(mSealedOpen);
-    for (auto& open : piece.open) open.second = dense[open.second];
-    for (uint32_t v = 0; v < mMeta.size(); ++v) {
-        if (mMeta[v].alive) {
-            piece.vertices.emplace_back() = {mGeom[v].p, mGeom[v].q, mMeta[v].final != 0};
-            if (v < mDrift.size()) piece.drift.emplace_back() = mDrift[v];
-            if (v < mAttrQ.size()) piece.attributes.emplace_back() = mAttrQ[v];
-        }
-        mGeom.releaseThrough(v);
-        mMeta.releaseThrough(v);
+    piece.refused.reserve(from.refusedCount());  // exactly: a doubling vector held up to twice the pairs
+    from.drainRefused([&](uint32_t a, uint32_t b, bool folds) { piece.refused.push_back({a, b, folds}); });
+    piece.open = from.takeOpen();
+    for (uint32_t i = 0; i < from.vertexCount(); ++i) {
+        piece.vertices.emplace_back() = {from.position(i), from.quadric(i), from.final(i)};
+        if (const float* d = from.drift(i)) piece.drift.emplace_back() = *d;
+        if (const AttributeQuadric* q = from.attributes(i)) piece.attributes.emplace_back() = *q;
+        from.release(i);
     }
-    for (size_t i = 0; i < mFaces.size(); ++i) {
-        const Face& f = mFaces[i];
-        if (f.alive()) piece.faces.emplace_back() = {dense[f.v[0]], dense[f.v[1]], dense[f.v[2]]};
-        mFaces.releaseThrough(i);
-    }
-    *this = Decimator{};
+    from.drainFaces([&](const std::array<uint32_t, 3>& f) { piece.faces.emplace_back() = f; });
     return piece;
 }
 
@@ -457,79 +570,91 @@ MeshPiece Decimator::park()
     return piece;
 }
 
+template <typename Source>
+void Decimator::copyExtras(uint32_t mine, const Source& from, uint32_t theirs)
+{
+    if (mMaxError < HUGE_VAL)
+        if (const float* d = from.drift(theirs)) mDrift[mine] = std::max(mDrift[mine], *d);
+    if (mAttrWeight2 > 0)
+        if (const AttributeQuadric* q = from.attributes(theirs))
+            mAttrQ[mine] += q->shifted(sub(mGeom[mine].p, from.position(theirs)));
+}
+
 void Decimator::absorb(MeshPiece&& piece)
 {
-    const size_t n = piece.vertices.size();
+    PieceSource from(piece);
+    absorbFrom(from);
+}
+
+void Decimator::absorb(Decimator&& other)
+{
+    DecimatorSource from(other);
+    absorbFrom(from);
+}
+
+template <typename Source>
+void Decimator::absorbFrom(Source& from)
+{
+    const size_t n = from.vertexCount();
     std::vector<uint32_t> remap(n, UINT32_MAX);
     // Both open lists in key order, walked together into the merged one.
     seal();
+    const std::vector<std::pair<EdgeKey, uint32_t>> theirOpen = from.takeOpen();
     std::vector<std::pair<EdgeKey, uint32_t>> open;
-    open.reserve(mSealedOpen.size() + piece.open.size());
+    open.reserve(mSealedOpen.size() + theirOpen.size());
     auto mine = mSealedOpen.cbegin();
-    for (const auto& [key, id] : piece.open) {
+    for (const auto& [key, id] : theirOpen) {
         while (mine != mSealedOpen.cend() && mine->first < key) open.push_back(*mine++);
-        const MeshPiece::Vertex& theirs = piece.vertices[id];
         if (mine != mSealedOpen.cend() && mine->first == key) {
             remap[id] = mine->second;
             VertexGeom& welded = mGeom[mine->second];
-            welded.q = edgeQuadric(welded.p, welded.q, theirs.p, theirs.q);
-            copyExtras(mine->second, piece, id);
+            welded.q = edgeQuadric(welded.p, welded.q, from.position(id), from.quadric(id));
+            copyExtras(mine->second, from, id);
             open.push_back(*mine++);
         } else {
-            remap[id] = newVertex(theirs.p);
-            mGeom[remap[id]].q = theirs.q;
-            copyExtras(remap[id], piece, id);
+            remap[id] = newVertex(from.position(id));
+            mGeom[remap[id]].q = from.quadric(id);
+            copyExtras(remap[id], from, id);
             open.emplace_back(key, remap[id]);
         }
     }
     open.insert(open.end(), mine, mSealedOpen.cend());
     mSealedOpen = std::move(open);
-    piece.open = {};
     for (uint32_t v = 0; v < n; ++v) {
         if (remap[v] == UINT32_MAX) {
-            const MeshPiece::Vertex& theirs = piece.vertices[v];
-            remap[v] = newVertex(theirs.p);
-            mGeom[remap[v]].q = theirs.q;
-            copyExtras(remap[v], piece, v);
-            mMeta[remap[v]].final = theirs.final;
+            remap[v] = newVertex(from.position(v));
+            mGeom[remap[v]].q = from.quadric(v);
+            copyExtras(remap[v], from, v);
+            mMeta[remap[v]].final = from.final(v);
         }
-        piece.vertices.releaseThrough(v);
+        from.release(v);
     }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
     // Each piece vertex's number here and its version, side by side for the queue's random reads.
     std::vector<std::pair<uint32_t, uint32_t>> renumbered(n);
     for (uint32_t v = 0; v < n; ++v) renumbered[v] = {remap[v], mMeta[remap[v]].version};
-    const bool pushEach = mHeap.size() > piece.queue.size();
-    for (size_t i = 0; i < piece.queue.size(); ++i) {
-        const MeshPiece::Queued& c = piece.queue[i];
-        const auto [a, va] = renumbered[c.a];
-        const auto [b, vb] = renumbered[c.b];
+    const bool pushEach = mHeap.size() > from.queued();
+    from.drainQueue([&](uint32_t costBits, uint32_t ia, uint32_t ib, bool stale) {
+        const auto [a, va] = renumbered[ia];
+        const auto [b, vb] = renumbered[ib];
         // An entry that was stale stays stale (re-evaluated when popped).
-        const uint32_t stamp = va + vb - (c.stale ? 1u : 0u);
+        const uint32_t stamp = va + vb - (stale ? 1u : 0u);
         // Into a larger queue each entry is pushed (it sifts up a level or two on average); into a
         // smaller one they are appended and the whole is ordered once when next used.
-        const Candidate e = Candidate::make(c.costBits, std::min(a, b), std::max(a, b), stamp);
+        const Candidate e = Candidate::make(costBits, std::min(a, b), std::max(a, b), stamp);
         if (pushEach) mHeap.push(e);
         else mHeap.append(e);
-        piece.queue.releaseThrough(i);
-    }
+    });
     renumbered = {};
-    piece.queue = {};
     // Refused pairs come along as unchanged: both ends are final, so every face around them is
     // already in the piece and the merge adds none (it welds open vertices only). Retrying them at
     // every node of the merge tree tried each closed tetrahedron of a noisy surface once per level.
-    for (const auto& r : piece.refused) {
-        const uint32_t a = std::min(remap[r.a], remap[r.b]), b = std::max(remap[r.a], remap[r.b]);
-        mRefused.emplace_back() = refusal(a, b, r.folds);
-    }
-    piece.refused = {};
-    for (size_t i = 0; i < piece.faces.size(); ++i) {
-        const auto& f = piece.faces[i];
-        newFace({remap[f[0]], remap[f[1]], remap[f[2]]});
-        piece.faces.releaseThrough(i);
-    }
-    piece = MeshPiece{};
+    from.drainRefused([&](uint32_t ra, uint32_t rb, bool folds) {
+        const uint32_t a = std::min(remap[ra], remap[rb]), b = std::max(remap[ra], remap[rb]);
+        mRefused.emplace_back() = refusal(a, b, folds);
+    });
+    from.drainFaces([&](const std::array<uint32_t, 3>& f) { newFace({remap[f[0]], remap[f[1]], remap[f[2]]}); });
 }
 
 size_t Decimator::finalizeRemaining()
@@ -762,13 +887,6 @@ double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit)
     };
     if (after.empty()) return HUGE_VAL;  // nothing would be left of the fan
     return std::sqrt(farthest(after, before, farthest(before, after, 0.0)));
-}
-
-void Decimator::copyExtras(uint32_t mine, const MeshPiece& piece, uint32_t theirs)
-{
-    if (mMaxError < HUGE_VAL && theirs < piece.drift.size()) mDrift[mine] = std::max(mDrift[mine], piece.drift[theirs]);
-    if (mAttrWeight2 > 0 && theirs < piece.attributes.size())
-        mAttrQ[mine] += piece.attributes[theirs].shifted(sub(mGeom[mine].p, piece.vertices[theirs].p));
 }
 
 Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)

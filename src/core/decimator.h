@@ -108,6 +108,10 @@ public:
     // and their quadrics summed; the piece is consumed. Its queued edges come along; edges at welded
     // vertices are queued when they are finalised (finalizeOpen, finalizeRemaining).
     void absorb(MeshPiece&& piece);
+    // The same as absorb(other.takePiece()), read straight from the other decimator's arrays (a merge
+    // in one process): the same mesh and queue, without a copy of the other side in between. `other`
+    // is left empty.
+    void absorb(Decimator&& other);
 
     // Drops queue entries that no longer name an edge and releases the spare capacity (before a merge,
     // where every slab's queue is copied).
@@ -300,9 +304,17 @@ private:
     // centroids and edge midpoints of the faces around a and b before from the faces after, and the
     // other way. Any result above `limit` may stop the search early.
     double fanDistance(uint32_t a, uint32_t b, const std::array<double, 3>& p, double limit) const;
-    // Slab merge: vertex `mine` takes over what the piece's vertex `theirs` carries beyond position and
-    // quadric (a welded seam vertex sums them): the larger drift under a bound, the attribute quadric.
-    void copyExtras(uint32_t mine, const MeshPiece& piece, uint32_t theirs);
+    // What absorb reads of the other side of a merge, in a piece's numbering (alive vertices densely,
+    // in id order), each part once and freed as it is read: a MeshPiece, or another decimator's own
+    // arrays (decimator.cpp). takePiece is absorb's reading of a decimator written into a piece.
+    class PieceSource;
+    class DecimatorSource;
+    template <typename Source>
+    void absorbFrom(Source& from);
+    // Slab merge: vertex `mine` takes over what the other side's vertex `theirs` carries beyond position
+    // and quadric (a welded seam vertex sums them): the larger drift under a bound, the attribute quadric.
+    template <typename Source>
+    void copyExtras(uint32_t mine, const Source& from, uint32_t theirs);
     // Collapses ab when the topology allows it and a placement keeps every face valid, unless the
     // cheapest such placement costs more than maxCost: then *cost gets its cost (Costlier), or when it
     // moves the surface by more than the error bound (TooFar).

@@ -90,6 +90,14 @@ public:
         clear();
     }
 
+    // Calls f on every entry, in no particular order.
+    template <typename F>
+    void visit(F f) const
+    {
+        for (size_t p = kPad; p < mEnd; ++p) f(slot(p));
+        for (size_t i = 0; i < mCold.size(); ++i) f(mCold[i]);
+    }
+
     // Entries not below `from` wait unordered, outside the heap, until the heap holds nothing smaller
     // (then all of them come back at once): pops and pushes walk a heap of the entries a pass is
     // likely to reach, not of every queued one. The order of pops is the same. With entries already

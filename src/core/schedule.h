@@ -177,12 +177,8 @@ public:
     // This node's mesh and numbers, for its parent in the merge tree; the integrator is left empty.
     SlabPiece takePiece()
     {
-        unpark();
-        mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
-        mStats.work += mDec.work() - mWorkSeen;
-        mWorkSeen = {};  // the decimator is left empty, its count at zero
-        SlabPiece p{mDec.takePiece(), mFacesGenerated + mAbsorbedFaces, std::move(mStats)};
-        p.stats.add(mAbsorbed);
+        SlabPiece p = handOver();
+        p.mesh = mDec.takePiece();
         return p;
     }
 
@@ -194,10 +190,16 @@ public:
     {
         unpark();
         mDec.absorb(std::move(sibling.mesh));
-        mDec.finalizeOpen(closes);
-        mAbsorbedFaces += sibling.facesGenerated;
-        mAbsorbed.add(sibling.stats);
-        decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+        joined(sibling, closes);
+    }
+    // The same for a sibling in this process: its mesh is read in place, not copied into a piece
+    // first (the same mesh either way); the sibling is left empty.
+    void absorbSlab(Integrator&& sibling, const std::function<bool(EdgeKey)>& closes)
+    {
+        const SlabPiece numbers = sibling.handOver();
+        unpark();
+        mDec.absorb(std::move(sibling.mDec));
+        joined(numbers, closes);
     }
 
     // A finished left child of the merge tree, until its sibling is done (near the end of a run the
@@ -261,6 +263,28 @@ private:
     // Faces a region of a coarser level's copy removes (coarser()): small enough that a region's
     // records stay in cache, large enough that a region is more than its boundary (docs/perf.md).
     static constexpr uint64_t kRegionFaces = 2000;
+
+    // What a node hands its parent besides its mesh (takePiece, absorbSlab): the faces its slabs
+    // generated and the numbers of its passes. The mesh is the caller's to take next.
+    SlabPiece handOver()
+    {
+        unpark();
+        mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
+        mStats.work += mDec.work() - mWorkSeen;
+        mWorkSeen = {};  // the decimator is emptied next, its count at zero
+        SlabPiece p{MeshPiece{}, mFacesGenerated + mAbsorbedFaces, std::move(mStats)};
+        p.stats.add(mAbsorbed);
+        return p;
+    }
+
+    // absorbSlab, once the sibling's mesh is in: the seam becomes final and is decimated.
+    void joined(const SlabPiece& sibling, const std::function<bool(EdgeKey)>& closes)
+    {
+        mDec.finalizeOpen(closes);
+        mAbsorbedFaces += sibling.facesGenerated;
+        mAbsorbed.add(sibling.stats);
+        decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+    }
 
     void unpark()
     {

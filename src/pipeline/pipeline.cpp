@@ -165,7 +165,9 @@ private:
     Levels rankSubtree(size_t l, size_t r, size_t a, size_t b);
     Levels localSubtree(size_t l, size_t r);
     void join(Levels& left, std::vector<SlabPiece>&& right, size_t l, size_t r) const;
-    void joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const;
+    // The right side: a piece from another rank, or the sibling itself in this process.
+    template <typename Right>
+    void joinLevel(Integrator& left, Right&& right, size_t l, size_t r) const;
     bool wholeTree(size_t l, size_t r) const { return l == 0 && r == mSlabs.size(); }
     Levels extractSlab(size_t si);
     void watch(Decimator& dec);
@@ -456,7 +458,7 @@ Levels PipelineRun::localSubtree(size_t l, size_t r)
                     }
                     if (!isLeft) std::swap(mine, sibling);  // the left one absorbs the right one
                     const double start = mClock.seconds();
-                    joinLevel(*mine, sibling->takePiece(), pl, pr);
+                    joinLevel(*mine, std::move(*sibling), pl, pr);
                     sibling.reset();
                     timed(pl, pr, start);
                     nl = pl;
@@ -496,11 +498,12 @@ void PipelineRun::join(Levels& left, std::vector<SlabPiece>&& right, size_t l, s
     forEachLevel(left, [&](size_t k, Integrator& level) { joinLevel(level, std::move(right[k]), l, r); });
 }
 
-void PipelineRun::joinLevel(Integrator& left, SlabPiece&& right, size_t l, size_t r) const
+template <typename Right>
+void PipelineRun::joinLevel(Integrator& left, Right&& right, size_t l, size_t r) const
 {
     left.park();  // every left child goes through park() once before its join, waiting or not
     const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    left.absorbSlab(std::move(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+    left.absorbSlab(std::forward<Right>(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
