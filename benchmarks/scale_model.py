@@ -20,7 +20,12 @@ on; a thread whose node waits for its sibling takes the next slab. The set-up ru
 layout divided among the threads), then the final pass and the write. The node seconds of a `-j 1` run carry
 no contention between threads (memory bandwidth, allocator): compare the model at 2 threads with the wall of
 a measured `-j 2` run.
-Prints a table of W -> modelled seconds and speed-up (ranks and threads) and the critical path at 16 workers,
+Bound: no schedule of the same node seconds on W workers ends the tree sooner than every node but the root
+spread evenly over the workers and then the root, nor sooner than its longest chain (a slab and the joins
+above it), nor sooner than every slab spread evenly and then the joins above the last slab to finish (at
+least the cheapest such path): what a better schedule could still gain, and what only cheaper (or parallel)
+joins can.
+Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound) and the critical path at 16 workers,
 the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
 and writes an SVG plot.
 Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
@@ -89,11 +94,30 @@ def model(report, wall, even=False):
         start = setup + (count + layout) / min(w, slabs)
         ranks, ranks_path = parallel(0, slabs, 0, w)
         threads, threads_path = threads_tree(node, slabs, w)
-        t, tt = start + ranks + final, start + threads + final
-        rows.append((w, t, one / t, tt, one / tt))
+        t, tt, tb = start + ranks + final, start + threads + final, start + schedule_bound(node, slabs, w) + final
+        rows.append((w, t, one / t, tt, one / tt, tb, one / tb))
         if w == PATH_WORKERS:
             paths = ranks_path, threads_path
     return setup + count + layout, serial(0, slabs), final, rows, paths[0], paths[1]
+
+
+def schedule_bound(node, slabs, workers):
+    """Seconds below which no schedule of these nodes on `workers` workers ends the tree: the root waits for
+    every other node (at best spread evenly over the workers); for its longest chain of nodes; and for the
+    last slab to finish (no sooner than all slabs spread evenly) and then the joins above that slab, at
+    least those of the slab whose joins cost least."""
+    root = node[(0, slabs)]
+    rest = sum(node.values()) - root
+    slab_work = sum(node[(l, l + 1)] for l in range(slabs))
+
+    def chain(l, r, joins_only):
+        if r - l < 2:
+            return 0.0 if joins_only else node[(l, r)]
+        m = merge_split(l, r)
+        below = (min if joins_only else max)(chain(l, m, joins_only), chain(m, r, joins_only))
+        return below + node[(l, r)]
+
+    return max(rest / workers + root, chain(0, slabs, False), slab_work / workers + chain(0, slabs, True))
 
 
 def threads_tree(node, slabs, workers):
@@ -186,10 +210,10 @@ def main(argv):
         wall, label = float(argv[i + 1]), argv[i + 2]
         setup, tree, final, rows, critical, thread_path = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
-        print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up |")
-        print("|---|---|---|---|---|")
-        for w, t, s, tt, ts in rows:
-            print(f"| {w} | {t:.2f} | {s:.1f}x | {tt:.2f} | {ts:.1f}x |")
+        print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |")
+        print("|---|---|---|---|---|---|---|")
+        for w, t, s, tt, ts, tb, bs in rows:
+            print(f"| {w} | {t:.2f} | {s:.1f}x | {tt:.2f} | {ts:.1f}x | {tb:.2f} | {bs:.1f}x |")
         print(f"critical path at {PATH_WORKERS} ranks: " + ", then ".join(critical))
         print(f"critical path at {PATH_WORKERS} threads (after the set-up): " + ", then ".join(thread_path))
         even = {row[0]: row for row in model(report, wall, even=True)[3]}

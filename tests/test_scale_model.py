@@ -6,6 +6,9 @@ A report of 4 slabs and 3 joins: the tree [0, 4) -> [0, 2) + [2, 4), each of two
     node's second child joins it at once, a thread whose node waits takes the next slab.
   * Ranks of one thread: rank shares in proportion to slabs, a node on one rank is the sum of its
     nodes, on more ranks max(left, right + transfer) + its join.
+  * The bound of any schedule: every node but the root spread evenly, then the root; the longest
+    chain of a slab and its joins; every slab spread evenly, then the cheapest joins above a slab:
+    whichever is longest.
 Usage: test_scale_model.py path/to/benchmarks/scale_model.py
 """
 import importlib.util
@@ -57,6 +60,34 @@ class ThreadModel(unittest.TestCase):
         self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 4, 64)[0], 3.0)
 
 
+class ScheduleBound(unittest.TestCase):
+    def test_work_bound(self):
+        # Two workers: the six nodes below the root (5.0 s) take at least 2.5 s, then the root 0.5 s; the
+        # threads' schedule (3.5 s) leaves 0.5 s to a better one.
+        rep = report([1, 1, 1, 1], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(scale_model.schedule_bound(nodes_of(rep), 4, 2), 3.0)
+
+    def test_chain_bound(self):
+        # Many workers: the longest chain, slab 1 (2 s), [0, 2) and the root, 3.0 s; the threads reach it.
+        rep = report([1, 2, 1, 1], [0.5, 0.25, 0.5])
+        self.assertAlmostEqual(scale_model.schedule_bound(nodes_of(rep), 4, 64), 3.0)
+        # The long first slab of two workers: the bound and the threads' schedule agree (4.0 s).
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(scale_model.schedule_bound(nodes_of(rep), 4, 2), 4.0)
+
+
+    def test_last_slab_bound(self):
+        # Three workers, joins as dear as slabs: the slabs take at least 4/3 s, and whichever finishes
+        # last has two joins above it (2 s): 3.33 s, above the other two bounds (6 s of nodes below the
+        # root / 3 + 1 = 3; the longest chain 1 + 1 + 1 = 3).
+        rep = report([1, 1, 1, 1], [1.0, 1.0, 1.0])
+        self.assertAlmostEqual(scale_model.schedule_bound(nodes_of(rep), 4, 3), 4 / 3 + 2)
+        # A dearer left join: the last slab may be a right one, whose joins cost 2 s (the longest chain,
+        # 1 + 1.2 + 1, and 6.2 / 3 + 1 stay below).
+        rep = report([1, 1, 1, 1], [1.2, 1.0, 1.0])
+        self.assertAlmostEqual(scale_model.schedule_bound(nodes_of(rep), 4, 3), 4 / 3 + 2)
+
+
 class RankModel(unittest.TestCase):
     def test_two_ranks(self):
         # Rank 0: slabs 0, 1 and [0, 2) = 4.5 s; rank 1: 2.5 s plus its transfer (no faces: 0); root 0.5.
@@ -68,6 +99,8 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
         self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final)  # threads, as above
         self.assertAlmostEqual(by_workers[1][2], 1.0)
+        self.assertAlmostEqual(by_workers[1][6], 1.0)  # one worker: the bound is the serial run
+        self.assertAlmostEqual(by_workers[2][5], setup + 4.0 + final)
 
 
 if __name__ == "__main__":
