@@ -434,6 +434,7 @@ class Decimator::DecimatorSource {
 public:
     explicit DecimatorSource(Decimator& d) : mDec(d), mDense(d.mMeta.size(), kNone), mQueueable(d.mMeta.size(), {kNone, 0})
     {
+        mIds.reserve(d.mVertexCount);  // exactly: a doubling vector held up to twice the numbers, at a merge's peak
         for (uint32_t v = 0; v < d.mMeta.size(); ++v)
             if (d.mMeta[v].alive) {
                 mDense[v] = uint32_t(mIds.size());
