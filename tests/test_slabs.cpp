@@ -148,32 +148,102 @@ TEST(Slabs, RankSharesMakeEveryNodeOnce)
         }
 }
 
-// Any band height keeps the order monotone (a block never comes after one componentwise above it),
-// which the modifiability rule needs; a volume that makes one slab keeps plain z/y/x.
-TEST(Slabs, BandedOrderIsMonotone)
+// The merge tree's order is monotone (a block never comes after one componentwise above it), which the
+// modifiability rule needs, for listed blocks and any other origin alike; it is a strict total order;
+// the arranged list is in it; and each slab is the run splitSlabs cuts.
+TEST(Slabs, TreeOrderIsMonotone)
 {
-    const std::vector<BlockOrigin> blocks = randomBlocks(9, 3000, 12);
-    EXPECT_EQ(blockOrderFor(blocks, blocks.size()).bandRows, BlockOrder{}.bandRows);
-    const BlockOrder banded = blockOrderFor(blocks, 64);
-    EXPECT_GE(banded.bandRows, 1);
-    EXPECT_LT(banded.bandRows, 12);
-    for (const BlockOrder order : {BlockOrder{}, banded, BlockOrder{1}, BlockOrder{3}})
-        for (size_t i = 0; i < blocks.size(); ++i)
-            for (size_t j = 0; j < blocks.size(); j += 7) {
-                const BlockOrigin &a = blocks[i], &b = blocks[j];
+    std::mt19937 rng(5);
+    for (size_t slabs : {1, 2, 7, 64}) {
+        std::vector<BlockOrigin> blocks = randomBlocks(9, 3000, 12);
+        const std::vector<BlockOrigin> listed = blocks;
+        const BlockOrder order = arrangeBlocks(blocks, slabs);
+        ASSERT_EQ(blocks.size(), listed.size());
+        ASSERT_TRUE(std::is_permutation(blocks.begin(), blocks.end(), listed.begin()));
+        ASSERT_TRUE(std::is_sorted(blocks.begin(), blocks.end(), order)) << slabs << " slabs";
+        std::vector<BlockOrigin> points = blocks;
+        for (int i = 0; i < 500; ++i)  // origins that are no block, some outside the blocks' box
+            points.push_back({8 * int32_t(rng() % 16) - 24, 8 * int32_t(rng() % 16) - 16, 8 * int32_t(rng() % 16) - 8});
+        for (size_t i = 0; i < points.size(); ++i)
+            for (size_t j = i % 5; j < points.size(); j += 5) {
+                const BlockOrigin &a = points[i], &b = points[j];
+                ASSERT_FALSE(order(a, a));
+                if (a != b) {
+                    ASSERT_NE(order(a, b), order(b, a)) << slabs << " slabs";
+                }
                 if (a[0] <= b[0] && a[1] <= b[1] && a[2] <= b[2]) {
-                    ASSERT_FALSE(order(b, a)) << "band rows " << order.bandRows;
+                    ASSERT_FALSE(order(b, a)) << slabs << " slabs";
                 }
             }
+        const std::vector<Slab> cut = splitSlabs(blocks, slabs);
+        for (const Slab& s : cut)  // a slab is swept z, y, x
+            ASSERT_TRUE(std::is_sorted(blocks.begin() + long(s.begin), blocks.begin() + long(s.end),
+                                       [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); }));
+    }
+}
+
+// What the tree's order is for: the seams between slabs, counted as faces between blocks of different
+// slabs on a dense cube of blocks, against slabs cut from the plain z/y/x sweep (sheets a fraction of a
+// layer thick), in all and on the way from the root to any slab (the joins one after another).
+TEST(Slabs, TreeOrderCutsSmallSeams)
+{
+    const int n = 24;
+    std::vector<BlockOrigin> cube;
+    for (int z = 0; z < n; ++z)
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x) cube.push_back({8 * x, 8 * y, 8 * z});
+    const size_t slabs = 64;
+    struct Seams {
+        size_t total = 0, path = 0;
+    };
+    const auto seams = [&](const std::vector<BlockOrigin>& blocks) {
+        std::map<BlockOrigin, size_t> slabOf;
+        const std::vector<Slab> cut = splitSlabs(blocks, slabs);
+        for (size_t s = 0; s < cut.size(); ++s)
+            for (size_t i = cut[s].begin; i < cut[s].end; ++i) slabOf[blocks[i]] = s;
+        std::map<std::pair<size_t, size_t>, size_t> atNode;  // seam faces each join closes
+        Seams out;
+        for (const BlockOrigin& b : blocks)
+            for (int axis = 0; axis < 3; ++axis) {
+                BlockOrigin up = b;
+                up[size_t(axis)] += 8;
+                const auto it = slabOf.find(up);
+                if (it == slabOf.end() || it->second == slabOf[b]) continue;
+                ++out.total;
+                size_t l = 0, r = slabs, lo = std::min(it->second, slabOf[b]), hi = std::max(it->second, slabOf[b]);
+                while (true) {
+                    const size_t m = mergeSplit(l, r);
+                    if (hi < m) r = m;
+                    else if (lo >= m) l = m;
+                    else break;
+                }
+                ++atNode[{l, r}];
+            }
+        const std::function<size_t(size_t, size_t)> path = [&](size_t l, size_t r) -> size_t {
+            if (r - l < 2) return 0;
+            const size_t m = mergeSplit(l, r);
+            return atNode[{l, r}] + std::max(path(l, m), path(m, r));
+        };
+        out.path = path(0, slabs);
+        return out;
+    };
+    std::vector<BlockOrigin> tree = cube;
+    arrangeBlocks(tree, slabs);
+    const Seams sweep = seams(cube), mine = seams(tree);
+    // Sheets: every layer boundary is a seam, n - 1 planes, and the top joins close whole planes.
+    EXPECT_GE(sweep.total, size_t((n - 1) * n * n));
+    EXPECT_LT(mine.total, sweep.total / 2) << mine.total << " against " << sweep.total;
+    EXPECT_LT(mine.path, sweep.path / 2) << mine.path << " against " << sweep.path;
+    EXPECT_GE(mine.path, size_t(n * n));  // the root's cut is a plane at least
 }
 
 // The seam rule against its definition: a vertex on edge (v, axis) is final within blocks [begin, end)
 // iff all four cells around the edge lie in blocks of that range.
 TEST(Slabs, EdgeWithinMatchesTheCellsAroundTheEdge)
 {
-  for (const BlockOrder order : {BlockOrder{}, BlockOrder{2}}) {
+  for (size_t slabs : {1, 2, 9}) {
     std::vector<BlockOrigin> blocks = randomBlocks(5, 600, 6);
-    std::sort(blocks.begin(), blocks.end(), order);
+    const BlockOrder order = arrangeBlocks(blocks, slabs);
     auto indexOf = [&](const BlockOrigin& o) {
         const auto it = std::lower_bound(blocks.begin(), blocks.end(), o, order);
         return it != blocks.end() && *it == o ? long(it - blocks.begin()) : -1L;

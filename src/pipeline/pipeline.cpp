@@ -206,8 +206,8 @@ private:
     Levels mRoot;  // the tree's result: the whole surface, per level (rank 0 only, in a distributed run)
     // How many blocks still to be integrated sample each block's leaf (its own block and the up to 7
     // below, behind and left of it that this process extracts): at zero the leaf is freed. In the high
-    // four bits, how many of them lie more than a slab before the leaf's own (the row below a band's
-    // edge, a sweep ahead of the band): when those are done the leaf is parked until its own slabs
+    // four bits, how many of them lie more than a slab before the leaf's own (the layer below a cut of
+    // the merge tree, a subtree ahead of it): when those are done the leaf is parked until its own slabs
     // read it again, unless they have started. Per block, which of its leaves it reads that early.
     std::unique_ptr<std::atomic<uint8_t>[]> mLeafSamplers;
     std::unique_ptr<uint8_t[]> mEarlyReads;
@@ -315,9 +315,9 @@ void PipelineRun::setTarget()
 // tree joins the two; every other vertex follows the modifiability rule inside its slab.
 void PipelineRun::splitSlabs()
 {
-    mOrder = blockOrderFor(mBlocks, mOpt.blocksPerSlab);
-    std::sort(mBlocks.begin(), mBlocks.end(), mOrder);
-    mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabCount(mBlocks.size(), mOpt.blocksPerSlab));
+    const size_t slabs = std::min(slabCount(mBlocks.size(), mOpt.blocksPerSlab), mBlocks.size());
+    mOrder = arrangeBlocks(mBlocks, slabs);
+    mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabs);
     mResult.report.slabs = mSlabs.size();
     mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
     // The decimator's least face weight is a fraction of a voxel face, in world units.
@@ -635,7 +635,7 @@ size_t PipelineRun::lowerBoundFrom(const BlockOrigin& o, size_t from) const
 // f(leaf, d, j) for the leaves block i samples (block_order.h's sampledLeaf), j their index in the
 // list or the list's size where a leaf is no block. A leaf lies at or above block i, so not before it
 // in the block order, and each is searched from the one it lies +x, +y or +z of (d without its lowest
-// bit): mostly the next block or a row on; only +z alone is a band's layer on.
+// bit): mostly the next block or a row on; across a cut of the merge tree, a subtree on.
 template <typename F>
 void PipelineRun::forSampledLeaves(size_t i, F&& f) const
 {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 namespace vdb_isosimp {
 
@@ -92,15 +93,37 @@ bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const Block
     return end >= blocks.size() || order(eb.last, blocks[end]);
 }
 
-BlockOrder blockOrderFor(const std::vector<BlockOrigin>& blocks, uint64_t blocksPerSlab)
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs)
 {
     BlockOrder order;
-    if (blocks.size() <= std::max<uint64_t>(1, blocksPerSlab)) return order;
-    size_t rows = 0;  // occupied (z, y) rows of blocks
-    for (size_t i = 0; i < blocks.size(); ++i)
-        if (i == 0 || blocks[i][2] != blocks[i - 1][2] || blocks[i][1] != blocks[i - 1][1]) ++rows;
-    const double perRow = double(blocks.size()) / double(rows);
-    order.bandRows = int32_t(std::clamp<double>(std::round(std::sqrt(double(blocksPerSlab) / perRow)), 1.0, double(1 << 20)));
+    const size_t n = blocks.size();
+    if (slabs < 2 || n < 2) return order;
+    const auto at = [&](size_t s) { return blocks.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
+    const std::function<uint32_t(size_t, size_t)> build = [&](size_t l, size_t r) {
+        const uint32_t id = uint32_t(order.nodes.size());
+        order.nodes.emplace_back();
+        const auto first = at(l), last = at(r);
+        if (r - l < 2) {
+            std::sort(first, last, [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
+            return id;
+        }
+        BlockOrigin lo = *first, hi = *first;
+        for (auto it = first; it != last; ++it)
+            for (int k = 0; k < 3; ++k) {
+                lo[size_t(k)] = std::min(lo[size_t(k)], (*it)[size_t(k)]);
+                hi[size_t(k)] = std::max(hi[size_t(k)], (*it)[size_t(k)]);
+            }
+        int axis = 2;  // the longest extent; z, then y, then x on ties
+        for (int k = 1; k >= 0; --k)
+            if (hi[size_t(k)] - lo[size_t(k)] > hi[size_t(axis)] - lo[size_t(axis)]) axis = k;
+        const size_t m = mergeSplit(l, r);
+        std::nth_element(first, at(m), last, [axis](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, axis); });
+        const BlockOrigin boundary = *at(m);
+        const uint32_t left = build(l, m), right = build(m, r);
+        order.nodes[id] = {axis, boundary, left, right};
+        return id;
+    };
+    build(0, slabs);
     return order;
 }
 

@@ -18,33 +18,46 @@ constexpr uint64_t kDefaultBlocksPerSlab = 2048;
 // More slabs only add seams: a few hundred keep several hundred workers busy.
 constexpr size_t kMaxSlabs = 256;
 
-// The order blocks are extracted in: bands of `bandRows` block rows in y, each swept z, then y, then x.
-// Any order that never puts a block before one that is componentwise below it keeps the modifiability
-// rule (modifiability.h), and this one does: a lower band comes first, within a band z/y/x. Slabs are
-// runs of this order, so a slab is a brick (a band's rows over a few layers) rather than a sheet that is
-// a fraction of a layer thick: a brick's seams are a third of a sheet's at 448^3, and seam faces wait
-// at full resolution for the merge that closes them.
+// Blocks of z/y/x-sorted `a` and `b` compared with `axis` first, then the others in z, y, x order: a
+// lexicographic order, so a block never comes after one componentwise above it.
+inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
+{
+    if (a[axis] != b[axis]) return a[axis] < b[axis];
+    for (int k = 2; k >= 0; --k)
+        if (k != axis && a[k] != b[k]) return a[k] < b[k];
+    return false;
+}
+
+// The order blocks are extracted in, the merge tree's own: every node of the tree is a run of it, cut
+// from its parent's run by the lexicographic order (lexBefore) along the longest axis of the parent's
+// blocks, the lower part first; a slab is swept z, y, x. So a node's two children meet on about one
+// plane across its shorter sides, and a slab is a brick: the seams that wait at full resolution for
+// the join that closes them are as small as a cut of the volume allows, and they shrink from the root
+// down (bands of rows swept z/y/x met on a full plane at every join above a band: docs/perf.md). The
+// order stays monotone (each cut and the sweep are), which the modifiability rule needs
+// (modifiability.h), and it orders any block origin, listed or not.
 struct BlockOrder {
-    int32_t bandRows = 1 << 20;  // one band: plain z/y/x
-    int32_t band(const BlockOrigin& o) const
-    {
-        const int32_t row = o[1] >> 3;  // block origins are multiples of 8
-        return row >= 0 ? row / bandRows : -((-row - 1) / bandRows) - 1;  // rounded down below zero too
-    }
+    struct Node {
+        int32_t axis = -1;      // -1: a slab, swept z/y/x
+        BlockOrigin boundary{}; // the right child's first block: the left child holds the blocks lexBefore it
+        uint32_t left = 0, right = 0;
+    };
+    std::vector<Node> nodes;  // nodes[0] is the root; empty: plain z/y/x (one slab)
     bool operator()(const BlockOrigin& a, const BlockOrigin& b) const
     {
-        const int32_t ba = band(a), bb = band(b);
-        if (ba != bb) return ba < bb;
-        if (a[2] != b[2]) return a[2] < b[2];
-        if (a[1] != b[1]) return a[1] < b[1];
-        return a[0] < b[0];
+        for (uint32_t n = 0; n < nodes.size() && nodes[n].axis >= 0;) {
+            const Node& s = nodes[n];
+            const bool ra = !lexBefore(a, s.boundary, s.axis), rb = !lexBefore(b, s.boundary, s.axis);
+            if (ra != rb) return rb;
+            n = ra ? s.right : s.left;
+        }
+        return lexBefore(a, b, 2);
     }
 };
 
-// The band height for z/y/x-sorted `blocks` cut into slabs of `blocksPerSlab`: as many rows as a slab
-// has layers, so slabs are about as tall as they are thick (h = sqrt(blocksPerSlab / blocks per row)).
-// One band when the blocks make a single slab.
-BlockOrder blockOrderFor(const std::vector<BlockOrigin>& blocks, uint64_t blocksPerSlab);
+// Puts the blocks (z/y/x-sorted, without duplicates) in the order of a merge tree over `slabs` slabs of
+// equal block counts (splitSlabs), and returns that order.
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs);
 
 // A run of consecutive blocks in block order, extracted and decimated by its own integrator.
 struct Slab {
@@ -90,7 +103,7 @@ std::pair<size_t, size_t> rankSlabs(size_t slabs, size_t rank, size_t ranks);
 
 // Where a vertex's edge lies in the block order: the vertex is made by the cells around its edge, and
 // the first and last of those in block order (componentwise the lowest and the highest, so in any
-// order of BlockOrder's kind) sit in the blocks `first` and `last` (block origins).
+// monotone order, as BlockOrder is) sit in the blocks `first` and `last` (block origins).
 // A vertex is final inside a slab when both lie in it, and at a merge node when both lie in the
 // node's slabs; otherwise it stays open, a seam vertex, until they do.
 struct EdgeBlocks {

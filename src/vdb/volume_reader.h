@@ -68,9 +68,9 @@ public:
     // about one layer of blocks per slab in progress. Thread-safe; nothing may sample the leaf afterwards.
     virtual void releaseLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     // Drops the voxels of a leaf that a sample() marked reloadable loaded, but keeps the leaf: the next
-    // sample reads them from the file again. For a leaf whose other readers come much later (a leaf on
-    // a band's edge is read by the last row of the band below it a whole sweep before its own band:
-    // block_order.h), so that a plane of leaves does not wait in memory in between. Thread-safe;
+    // sample reads them from the file again. For a leaf whose other readers come much later (a leaf just
+    // above a cut of the merge tree is read by the blocks below the cut, a whole subtree before its own:
+    // slabs.h), so that a plane of leaves does not wait in memory in between. Thread-safe;
     // nothing may sample the leaf while this runs. A no-op for a leaf not loaded that way.
     virtual void parkLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     // How many leaves parkLeaf has parked so far.
