@@ -26,6 +26,7 @@
 #include <tbb/task_group.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/blocked_range.h>
 
 #include <algorithm>
@@ -176,6 +177,12 @@ private:
     void integrateBlock(Integrator& integ, const BlockMesh& m);
     void releaseSampledLeaves(size_t i);
     size_t lowerBoundFrom(const BlockOrigin& o, size_t from) const;
+    // The blocks in z/y/x order with their index in mBlocks, and each block's place here: the leaves a
+    // block samples lie +x, +y and +z of it, the next block, a row or a layer on in this order, where the
+    // tree's order may put them a subtree away (and compares by walking its cuts). Made with the leaf
+    // counts, let go with them.
+    std::vector<std::pair<BlockOrigin, uint32_t>> mSweep;
+    std::vector<uint32_t> mSweepAt;
     template <typename F>
     void forSampledLeaves(size_t i, F&& f) const;
     std::pair<size_t, size_t> rankBlocks() const;
@@ -600,6 +607,8 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
         mVol.reset();
         mLeafSamplers.reset();
         mEarlyReads.reset();
+        mSweep = {};
+        mSweepAt = {};
         malloc_trim(0);
     } else {
         if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
@@ -619,34 +628,35 @@ std::pair<size_t, size_t> PipelineRun::rankBlocks() const
     return l == r ? std::pair<size_t, size_t>{0, 0} : std::pair<size_t, size_t>{mSlabs[l].begin, mSlabs[r - 1].end};
 }
 
-// The first block of the list not ordered before `o`, searched from `from`, which is not ordered
-// after `o`: galloping on, a few steps for a block nearby where a search of the whole list took 17.
+// The first place in mSweep not z/y/x-before `o`, searched from `from`, which is not after `o`:
+// galloping on, a few steps for a block nearby where a search of the whole list took 17.
 size_t PipelineRun::lowerBoundFrom(const BlockOrigin& o, size_t from) const
 {
+    const auto before = [](const std::pair<BlockOrigin, uint32_t>& b, const BlockOrigin& x) { return lexBefore(b.first, x, 2); };
     size_t lo = from, step = 1;
-    while (lo + step < mBlocks.size() && mOrder(mBlocks[lo + step], o)) {
+    while (lo + step < mSweep.size() && before(mSweep[lo + step], o)) {
         lo += step;
         step *= 2;
     }
-    const auto end = mBlocks.begin() + std::ptrdiff_t(std::min(mBlocks.size(), lo + step + 1));
-    return size_t(std::lower_bound(mBlocks.begin() + std::ptrdiff_t(lo), end, o, mOrder) - mBlocks.begin());
+    const auto end = mSweep.begin() + std::ptrdiff_t(std::min(mSweep.size(), lo + step + 1));
+    return size_t(std::lower_bound(mSweep.begin() + std::ptrdiff_t(lo), end, o, before) - mSweep.begin());
 }
 
 // f(leaf, d, j) for the leaves block i samples (block_order.h's sampledLeaf), j their index in the
 // list or the list's size where a leaf is no block. A leaf lies at or above block i, so not before it
-// in the block order, and each is searched from the one it lies +x, +y or +z of (d without its lowest
-// bit): mostly the next block or a row on; across a cut of the merge tree, a subtree on.
+// in z/y/x order, and each is searched from the one it lies +x, +y or +z of (d without its lowest
+// bit): the next block, a row or a layer on.
 template <typename F>
 void PipelineRun::forSampledLeaves(size_t i, F&& f) const
 {
     std::array<size_t, 8> at{};
-    at[0] = i;
+    at[0] = mSweepAt[i];
     f(mBlocks[i], 0, i);
     for (int d = 1; d < 8; ++d) {
         const BlockOrigin leaf = sampledLeaf(mBlocks[i], d);
         at[size_t(d)] = lowerBoundFrom(leaf, at[size_t(d & (d - 1))]);
-        const size_t j = at[size_t(d)];
-        f(leaf, d, j < mBlocks.size() && mBlocks[j] == leaf ? j : mBlocks.size());
+        const size_t p = at[size_t(d)];
+        f(leaf, d, p < mSweep.size() && mSweep[p].first == leaf ? size_t(mSweep[p].second) : mBlocks.size());
     }
 }
 
@@ -656,6 +666,11 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
     mLeafSamplers.reset(new std::atomic<uint8_t>[mBlocks.size()]);
     mEarlyReads.reset(new uint8_t[mBlocks.size()]());
     for (size_t j = 0; j < mBlocks.size(); ++j) mLeafSamplers[j].store(0, std::memory_order_relaxed);
+    mSweep.resize(mBlocks.size());
+    for (size_t j = 0; j < mBlocks.size(); ++j) mSweep[j] = {mBlocks[j], uint32_t(j)};
+    tbb::parallel_sort(mSweep.begin(), mSweep.end(), [](const auto& a, const auto& b) { return lexBefore(a.first, b.first, 2); });
+    mSweepAt.resize(mBlocks.size());
+    for (size_t p = 0; p < mSweep.size(); ++p) mSweepAt[mSweep[p].second] = uint32_t(p);
     mSlabsStarted = 0;
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
