@@ -18,16 +18,6 @@ constexpr uint64_t kDefaultBlocksPerSlab = 2048;
 // More slabs only add seams: a few hundred keep several hundred workers busy.
 constexpr size_t kMaxSlabs = 256;
 
-// Blocks of z/y/x-sorted `a` and `b` compared with `axis` first, then the others in z, y, x order: a
-// lexicographic order, so a block never comes after one componentwise above it.
-inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
-{
-    if (a[axis] != b[axis]) return a[axis] < b[axis];
-    for (int k = 2; k >= 0; --k)
-        if (k != axis && a[k] != b[k]) return a[k] < b[k];
-    return false;
-}
-
 // The order blocks are extracted in, the merge tree's own: every node of the tree is a run of it, cut
 // from its parent's run by the lexicographic order (lexBefore) along the longest axis of the parent's
 // blocks, the lower part first; a slab is swept z, y, x. So a node's two children meet on about one

@@ -13,11 +13,7 @@ namespace vdb_isosimp {
 
 void sortBlocks(std::vector<BlockOrigin>& blocks)
 {
-    std::sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) {
-        if (a[2] != b[2]) return a[2] < b[2];
-        if (a[1] != b[1]) return a[1] < b[1];
-        return a[0] < b[0];
-    });
+    std::sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
     blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
     // Collection pushes a block once per leaf or tile face that needs it: the duplicates' room would
     // otherwise stay reserved all run long.

@@ -34,6 +34,16 @@ inline BlockOrigin samplingBlock(const BlockOrigin& leaf, int d)
     return {leaf[0] - 8 * (d & 1), leaf[1] - 8 * ((d >> 1) & 1), leaf[2] - 8 * ((d >> 2) & 1)};
 }
 
+// Block origins compared on `axis` first, then on the others in z, y, x order: a lexicographic order, so
+// a block never comes after one componentwise above it. Axis 2 is the z/y/x order of sortBlocks.
+inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
+{
+    if (a[axis] != b[axis]) return a[axis] < b[axis];
+    for (int k = 2; k >= 0; --k)
+        if (k != axis && a[k] != b[k]) return a[k] < b[k];
+    return false;
+}
+
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 
