@@ -490,7 +490,7 @@ int main(int argc, char** argv)
         ->default_val(opt.threads)
         ->check(CLI::Range(0, 1024));
     app.add_option("--slab-blocks", opt.blocksPerSlab,
-                   "Blocks (8^3 cells) per slab: the volume is cut into slabs of this many blocks (at most 256\n"
+                   "Blocks (8^3 cells) per slab: the volume is cut into slabs of this many blocks (at most 1024\n"
                    "slabs), the independent pieces threads and MPI ranks share, joined by a fixed merge tree.\n"
                    "Changes the output slightly (more slabs, more seams); threads and ranks never do")
         ->default_val(opt.blocksPerSlab)

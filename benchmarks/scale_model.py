@@ -4,11 +4,13 @@
 Input: the --report JSON of a single-process run (threads 1 gives clean per-node seconds: tree_first_slab,
 tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
 Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
-  setup    : opening the file, the topology and the block list; every rank repeats it (serial). For
+  setup    : opening the file, the topology and the block list, the cut into slabs (seconds_open, _blocks,
+             _cut; and what no field times); every rank repeats it (serial). For
              a face target, counting the faces: each rank counts its own slabs (divided by W). Laying
              out the leaves (seconds_layout): each rank its own slabs' (divided by W; the pass that
              deletes the other leaves, which every rank makes, is not in the model: not timed apart,
-             about 0.05 s a rank on the 2 GB gyroid by difference, docs/perf.md).
+             about 0.05 s a rank on the 2 GB gyroid by difference, docs/perf.md). Counting which of its
+             blocks read which leaf (seconds_samplers): each rank its own (divided by W).
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
@@ -67,6 +69,7 @@ def model(report, wall, even=False):
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
     count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
     layout = report.get("seconds_layout", 0.0)  # each rank lays out its own slabs' leaves
+    layout += report.get("seconds_samplers", 0.0)  # and counts which of its blocks read which leaf
     setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count - layout)
 
     def serial(l, r):
@@ -210,6 +213,9 @@ def main(argv):
         wall, label = float(argv[i + 1]), argv[i + 2]
         setup, tree, final, rows, critical, thread_path = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
+        pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
+        if pieces:
+            print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")
         print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |")
         print("|---|---|---|---|---|---|---|")
         for w, t, s, tt, ts, tb, bs in rows:

@@ -150,16 +150,21 @@ TEST(Slabs, RankSharesMakeEveryNodeOnce)
 
 // The merge tree's order is monotone (a block never comes after one componentwise above it), which the
 // modifiability rule needs, for listed blocks and any other origin alike; it is a strict total order;
-// the arranged list is in it; and each slab is the run splitSlabs cuts.
+// the arranged list is in it, each block told its place in the z/y/x list it came from; and each slab is
+// the run splitSlabs cuts.
 TEST(Slabs, TreeOrderIsMonotone)
 {
     std::mt19937 rng(5);
     for (size_t slabs : {1, 2, 7, 64}) {
         std::vector<BlockOrigin> blocks = randomBlocks(9, 3000, 12);
         const std::vector<BlockOrigin> listed = blocks;
-        const BlockOrder order = arrangeBlocks(blocks, slabs);
+        ASSERT_TRUE(std::is_sorted(listed.begin(), listed.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); }));
+        std::vector<uint32_t> place;
+        const BlockOrder order = arrangeBlocks(blocks, slabs, &place);
         ASSERT_EQ(blocks.size(), listed.size());
         ASSERT_TRUE(std::is_permutation(blocks.begin(), blocks.end(), listed.begin()));
+        ASSERT_EQ(place.size(), blocks.size());
+        for (size_t j = 0; j < blocks.size(); ++j) ASSERT_EQ(listed[place[j]], blocks[j]) << slabs << " slabs, block " << j;
         ASSERT_TRUE(std::is_sorted(blocks.begin(), blocks.end(), order)) << slabs << " slabs";
         std::vector<BlockOrigin> points = blocks;
         for (int i = 0; i < 500; ++i)  // origins that are no block, some outside the blocks' box

@@ -58,7 +58,7 @@ struct Options {
     // grid's topology exceeds this many bytes; checked on the opened grid before any voxel is read
     // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
     uint64_t maxMemoryBytes = 0;
-    // Blocks (8^3 cells) per slab: the blocks are cut into slabs of this many (at most 256 slabs), the
+    // Blocks (8^3 cells) per slab: the blocks are cut into slabs of this many (at most 1024 slabs), the
     // independent pieces of work that threads and MPI ranks share, joined by a fixed merge tree.
     // Changes the output (more slabs: more seams, each decimated when its two sides join); the output
     // never depends on threads or ranks. Default 2048.
@@ -140,6 +140,10 @@ struct Report {
     double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
     double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
     double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
+    // Of `seconds`, the set-up every rank repeats: opening the file (its checks and topology), choosing
+    // the iso-value and listing the blocks, cutting them into slabs; and counting which blocks read
+    // which leaf (each rank over its own blocks).
+    double secondsOpen = 0.0, secondsBlocks = 0.0, secondsCut = 0.0, secondsSamplers = 0.0;
     double peakRssMb = 0.0;
     uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.

@@ -26,7 +26,6 @@
 #include <tbb/task_group.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 #include <tbb/blocked_range.h>
 
 #include <algorithm>
@@ -179,8 +178,8 @@ private:
     size_t lowerBoundFrom(const BlockOrigin& o, size_t from) const;
     // The blocks in z/y/x order with their index in mBlocks, and each block's place here: the leaves a
     // block samples lie +x, +y and +z of it, the next block, a row or a layer on in this order, where the
-    // tree's order may put them a subtree away (and compares by walking its cuts). Made with the leaf
-    // counts, let go with them.
+    // tree's order may put them a subtree away (and compares by walking its cuts). The places come with
+    // the cut (arrangeBlocks), the list with the leaf counts; both go with the leaf counts.
     std::vector<std::pair<BlockOrigin, uint32_t>> mSweep;
     std::vector<uint32_t> mSweepAt;
     template <typename F>
@@ -242,6 +241,7 @@ private:
 
 void PipelineRun::openVolume(const VolumeOpener& open)
 {
+    const double start = mClock.seconds();
     mVol = open();
     mInfo = mVol->info();
     // Attribute grids are checked now, before any voxel is read; they are read after the final pass.
@@ -264,10 +264,12 @@ void PipelineRun::openVolume(const VolumeOpener& open)
     // A mirroring transform reverses the winding; compensate so normals still point outward.
     mFlip = mInfo.indexToWorld.determinant() < 0;
     mSampled = {mInfo.background, mInfo.background};
+    rep.secondsOpen = mClock.seconds() - start;
 }
 
 void PipelineRun::chooseIso()
 {
+    const double start = mClock.seconds();
     mCls.insideBelow = mInfo.levelSet;
     if (mOpt.iso) {
         mCls.iso = *mOpt.iso;
@@ -279,10 +281,12 @@ void PipelineRun::chooseIso()
         mResult.report.isoDefaulted = true;
     }
     mResult.report.iso = mCls.iso;
+    mResult.report.secondsBlocks = mClock.seconds() - start;
 }
 
 void PipelineRun::listBlocks()
 {
+    const double start = mClock.seconds();
     // Blocks along tile faces are known once the iso-value is: a few large tiles can describe a
     // surface far larger than their leaves suggest, so the budget is checked again before listing them.
     if (mOpt.maxMemoryBytes > 0)
@@ -290,6 +294,7 @@ void PipelineRun::listBlocks()
             checkMemoryBudget(mPath, mInfo, mOpt, mOpt.maxMemoryBytes, shells);
     mBlocks = mVol->blocks(mCls);
     mResult.report.blocks = mBlocks.size();
+    mResult.report.secondsBlocks += mClock.seconds() - start;
     if (mBlocks.empty()) throw noSurface();
 }
 
@@ -303,9 +308,9 @@ void PipelineRun::countFacesForTarget()
     mResult.report.facesFull = countFaces(*mVol, mBlocks, begin, end, mCls, [this](double fraction) {
         return !mProgress || mProgress->counting(fraction);
     });
-    // The count alone: it divides among ranks.
-    mResult.report.secondsCount = mClock.seconds() - start;
+    // The count and the trim of what it freed (each rank its own share): they divide among ranks.
     malloc_trim(0);
+    mResult.report.secondsCount = mClock.seconds() - start;
 }
 
 void PipelineRun::setTarget()
@@ -322,13 +327,15 @@ void PipelineRun::setTarget()
 // tree joins the two; every other vertex follows the modifiability rule inside its slab.
 void PipelineRun::splitSlabs()
 {
+    const double start = mClock.seconds();
     const size_t slabs = std::min(slabCount(mBlocks.size(), mOpt.blocksPerSlab), mBlocks.size());
-    mOrder = arrangeBlocks(mBlocks, slabs);
+    mOrder = arrangeBlocks(mBlocks, slabs, &mSweepAt);
     mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabs);
     mResult.report.slabs = mSlabs.size();
     mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
     // The decimator's least face weight is a fraction of a voxel face, in world units.
     mVoxelArea = std::pow(std::abs(mInfo.indexToWorld.determinant()), 2.0 / 3.0);
+    mResult.report.secondsCut = mClock.seconds() - start;
 }
 
 // The leaves this process's blocks sample, laid out in sweep order; with ranks, the others go. A
@@ -369,13 +376,13 @@ bool PipelineRun::runTree()
     const size_t rank = mRanks ? mRanks->rank() : 0, ranks = mRanks ? mRanks->ranks() : 1;
     const RankNode node = rankNode(mSlabs.size(), rank, ranks);
     mReleased = true;
-    const double start = mClock.seconds();
     if (!node.found) {  // more ranks than slabs: nothing to do here
         mResult.report.secondsSlabs = 0.0;
         return false;
     }
     const auto [begin, end] = rankBlocks();
     countLeafSamplers(begin, end);
+    const double start = mClock.seconds();
     Levels result;
     try {
         result = rankSubtree(node.l, node.r, node.a, node.b);
@@ -667,11 +674,10 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
     mEarlyReads.reset(new uint8_t[mBlocks.size()]());
     for (size_t j = 0; j < mBlocks.size(); ++j) mLeafSamplers[j].store(0, std::memory_order_relaxed);
     mSweep.resize(mBlocks.size());
-    for (size_t j = 0; j < mBlocks.size(); ++j) mSweep[j] = {mBlocks[j], uint32_t(j)};
-    tbb::parallel_sort(mSweep.begin(), mSweep.end(), [](const auto& a, const auto& b) { return lexBefore(a.first, b.first, 2); });
-    mSweepAt.resize(mBlocks.size());
-    for (size_t p = 0; p < mSweep.size(); ++p) mSweepAt[mSweep[p].second] = uint32_t(p);
+    for (size_t j = 0; j < mBlocks.size(); ++j) mSweep[mSweepAt[j]] = {mBlocks[j], uint32_t(j)};
     mSlabsStarted = 0;
+    // Each rank counts its own blocks' reads: the scaling model divides this among workers.
+    const double start = mClock.seconds();
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const size_t slab = slabOf(i);
@@ -684,6 +690,7 @@ void PipelineRun::countLeafSamplers(size_t begin, size_t end)
             });
         }
     });
+    mResult.report.secondsSamplers = mClock.seconds() - start;
 }
 
 size_t PipelineRun::slabOf(size_t block) const

@@ -93,37 +93,44 @@ bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const Block
     return end >= blocks.size() || order(eb.last, blocks[end]);
 }
 
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs)
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace)
 {
     BlockOrder order;
     const size_t n = blocks.size();
-    if (slabs < 2 || n < 2) return order;
-    const auto at = [&](size_t s) { return blocks.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
+    // Each block travels with its place in the z/y/x order it came in, for sweepPlace.
+    std::vector<std::pair<BlockOrigin, uint32_t>> placed(n);
+    for (size_t i = 0; i < n; ++i) placed[i] = {blocks[i], uint32_t(i)};
+    const auto at = [&](size_t s) { return placed.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
     const std::function<uint32_t(size_t, size_t)> build = [&](size_t l, size_t r) {
         const uint32_t id = uint32_t(order.nodes.size());
         order.nodes.emplace_back();
         const auto first = at(l), last = at(r);
         if (r - l < 2) {
-            std::sort(first, last, [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
+            std::sort(first, last, [](const auto& a, const auto& b) { return lexBefore(a.first, b.first, 2); });
             return id;
         }
-        BlockOrigin lo = *first, hi = *first;
+        BlockOrigin lo = first->first, hi = first->first;
         for (auto it = first; it != last; ++it)
             for (int k = 0; k < 3; ++k) {
-                lo[size_t(k)] = std::min(lo[size_t(k)], (*it)[size_t(k)]);
-                hi[size_t(k)] = std::max(hi[size_t(k)], (*it)[size_t(k)]);
+                lo[size_t(k)] = std::min(lo[size_t(k)], it->first[size_t(k)]);
+                hi[size_t(k)] = std::max(hi[size_t(k)], it->first[size_t(k)]);
             }
         int axis = 2;  // the longest extent; z, then y, then x on ties
         for (int k = 1; k >= 0; --k)
             if (hi[size_t(k)] - lo[size_t(k)] > hi[size_t(axis)] - lo[size_t(axis)]) axis = k;
         const size_t m = mergeSplit(l, r);
-        std::nth_element(first, at(m), last, [axis](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, axis); });
-        const BlockOrigin boundary = *at(m);
+        std::nth_element(first, at(m), last, [axis](const auto& a, const auto& b) { return lexBefore(a.first, b.first, axis); });
+        const BlockOrigin boundary = at(m)->first;
         const uint32_t left = build(l, m), right = build(m, r);
         order.nodes[id] = {axis, boundary, left, right};
         return id;
     };
-    build(0, slabs);
+    if (slabs >= 2 && n >= 2) build(0, slabs);
+    if (sweepPlace) sweepPlace->resize(n);
+    for (size_t j = 0; j < n; ++j) {
+        blocks[j] = placed[j].first;
+        if (sweepPlace) (*sweepPlace)[j] = placed[j].second;
+    }
     return order;
 }
 

@@ -15,8 +15,10 @@ namespace vdb_isosimp {
 // Blocks per slab when the options do not say: about 200k full-resolution faces on CT-like data, so
 // a 448^3 volume gives about 90 slabs and a slab's batches stay a small part of it.
 constexpr uint64_t kDefaultBlocksPerSlab = 2048;
-// More slabs only add seams: a few hundred keep several hundred workers busy.
-constexpr size_t kMaxSlabs = 256;
+// More slabs add seams, but the last slabs to finish hold up the joins above them: a few slabs per
+// worker even out their unequal seconds (the 1024^3 gyroid's 2.1M blocks: 256 slabs left 64 threads'
+// last slab ending 13 % after the mean, 1024 slabs 9 %; docs/scale.md).
+constexpr size_t kMaxSlabs = 1024;
 
 // The order blocks are extracted in, the merge tree's own: every node of the tree is a run of it, cut
 // from its parent's run by the lexicographic order (lexBefore) along the longest axis of the parent's
@@ -46,8 +48,9 @@ struct BlockOrder {
 };
 
 // Puts the blocks (z/y/x-sorted, without duplicates) in the order of a merge tree over `slabs` slabs of
-// equal block counts (splitSlabs), and returns that order.
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs);
+// equal block counts (splitSlabs), and returns that order. With `sweepPlace`: each block's place in the
+// z/y/x order it came in (the blocks a block's samples reach lie a block, a row or a layer on there).
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace = nullptr);
 
 // A run of consecutive blocks in block order, extracted and decimated by its own integrator.
 struct Slab {
