@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <unistd.h>
 
@@ -15,6 +16,14 @@ inline const std::string& dir()
         std::string base = ::access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
         std::string t = base + "/vdb_isosimp_fuzz.XXXXXX";
         if (!::mkdtemp(&t[0])) std::abort();
+        // Removed when the run ends (libFuzzer returns through exit()); a crash leaves it for a look. The
+        // handler reads its own copy: `d` itself is destroyed before handlers registered during its
+        // initialisation run.
+        static const std::string* const removeAtExit = new std::string(t);
+        std::atexit([] {
+            std::error_code ec;
+            std::filesystem::remove_all(*removeAtExit, ec);
+        });
         return t;
     }();
     return d;
