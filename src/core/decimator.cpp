@@ -380,8 +380,14 @@ void Decimator::addBlock(const BlockMesh& block)
         }
 }
 
+// A merge hands the other side's queue entries and faces over in runs of this many: a run's reads of
+// the arrays indexed by vertex (new numbers, versions) are started together before any is used, so
+// their cache misses overlap instead of following one another (docs/perf.md).
+static constexpr size_t kRun = 64;
+
 // What absorb reads of the other side of a merge, in a piece's numbering (the alive vertices
-// densely, in id order). Each part is read once, in absorb's order, and freed as it is read.
+// densely, in id order). Each part is read once, in absorb's order, and freed as it is read; `ahead`
+// sees a run's entries (their ends in that numbering) before `f` is called on them.
 class Decimator::PieceSource {
 public:
     explicit PieceSource(MeshPiece& piece) : mPiece(piece) {}
@@ -397,13 +403,18 @@ public:
     }
     void release(uint32_t i) { mPiece.vertices.releaseThrough(i); }
     size_t queued() const { return mPiece.queue.size(); }
-    template <typename F>
-    void drainQueue(F f)
+    template <typename Ahead, typename F>
+    void drainQueue(Ahead ahead, F f)
     {
-        for (size_t i = 0; i < mPiece.queue.size(); ++i) {
-            const MeshPiece::Queued& c = mPiece.queue[i];
-            f(c.costBits, c.a, c.b, c.stale);
-            mPiece.queue.releaseThrough(i);
+        const size_t n = mPiece.queue.size();
+        for (size_t run = 0; run < n; run += kRun) {
+            const size_t end = std::min(n, run + kRun);
+            for (size_t i = run; i < end; ++i) ahead(mPiece.queue[i].a, mPiece.queue[i].b);
+            for (size_t i = run; i < end; ++i) {
+                const MeshPiece::Queued& c = mPiece.queue[i];
+                f(c.costBits, c.a, c.b, c.stale);
+                mPiece.queue.releaseThrough(i);
+            }
         }
         mPiece.queue = {};
     }
@@ -413,12 +424,17 @@ public:
         for (const auto& r : mPiece.refused) f(r.a, r.b, r.folds);
         mPiece.refused = {};
     }
-    template <typename F>
-    void drainFaces(F f)
+    template <typename Ahead, typename F>
+    void drainFaces(Ahead ahead, F f)
     {
-        for (size_t i = 0; i < mPiece.faces.size(); ++i) {
-            f(mPiece.faces[i]);
-            mPiece.faces.releaseThrough(i);
+        const size_t n = mPiece.faces.size();
+        for (size_t run = 0; run < n; run += kRun) {
+            const size_t end = std::min(n, run + kRun);
+            for (size_t i = run; i < end; ++i) ahead(mPiece.faces[i]);
+            for (size_t i = run; i < end; ++i) {
+                f(mPiece.faces[i]);
+                mPiece.faces.releaseThrough(i);
+            }
         }
         mPiece = MeshPiece{};
     }
@@ -475,16 +491,36 @@ public:
         mDec.mHeap.visit([&](const Candidate& c) { n += keeps(c); });
         return n;
     }
-    template <typename F>
-    void drainQueue(F f)
+    template <typename Ahead, typename F>
+    void drainQueue(Ahead ahead, F f)
     {
         // The queue names vertices in no order (about four entries a vertex): its entries read their
         // ends' new numbers and versions from one array of 8 bytes a vertex, not from the vertex
-        // records and the number map at random.
+        // records and the number map at random, and a run's reads start together.
+        std::array<Candidate, kRun> run;
+        size_t n = 0;
+        const auto flush = [&] {
+            for (size_t i = 0; i < n; ++i) {
+                __builtin_prefetch(&mQueueable[run[i].a()]);
+                __builtin_prefetch(&mQueueable[run[i].b]);
+            }
+            size_t kept = 0;
+            for (size_t i = 0; i < n; ++i)
+                if (keeps(run[i])) {
+                    run[kept++] = run[i];
+                    ahead(mQueueable[run[i].a()].dense, mQueueable[run[i].b].dense);
+                }
+            for (size_t i = 0; i < kept; ++i) {
+                const Renumbered a = mQueueable[run[i].a()], b = mQueueable[run[i].b];
+                f(run[i].costBits(), a.dense, b.dense, a.version + b.version != run[i].stamp);
+            }
+            n = 0;
+        };
         mDec.mHeap.drain([&](const Candidate& c) {
-            const Renumbered a = mQueueable[c.a()], b = mQueueable[c.b];
-            if (keeps(c)) f(c.costBits(), a.dense, b.dense, a.version + b.version != c.stamp);
+            run[n++] = c;
+            if (n == kRun) flush();
         });
+        flush();
         mQueueable = {};
     }
     // Refused pairs whose ends live.
@@ -501,13 +537,26 @@ public:
             if (live(r)) f(mDense[r.a], mDense[r.b], r.folds != 0);
         mDec.mRefused = {};
     }
-    template <typename F>
-    void drainFaces(F f)
+    template <typename Ahead, typename F>
+    void drainFaces(Ahead ahead, F f)
     {
-        for (size_t i = 0; i < mDec.mFaces.size(); ++i) {
-            const Face& face = mDec.mFaces[i];
-            if (face.alive()) f(std::array<uint32_t, 3>{mDense[face.v[0]], mDense[face.v[1]], mDense[face.v[2]]});
-            mDec.mFaces.releaseThrough(i);
+        const size_t n = mDec.mFaces.size();
+        std::array<std::array<uint32_t, 3>, kRun> run;
+        for (size_t first = 0; first < n; first += kRun) {
+            const size_t end = std::min(n, first + kRun);
+            for (size_t i = first; i < end; ++i)
+                if (mDec.mFaces[i].alive())
+                    for (uint32_t v : mDec.mFaces[i].v) __builtin_prefetch(&mDense[v]);
+            size_t count = 0;
+            for (size_t i = first; i < end; ++i) {
+                const Face& face = mDec.mFaces[i];
+                if (face.alive()) {
+                    run[count] = {mDense[face.v[0]], mDense[face.v[1]], mDense[face.v[2]]};
+                    ahead(run[count++]);
+                }
+                mDec.mFaces.releaseThrough(i);
+            }
+            for (size_t i = 0; i < count; ++i) f(run[i]);
         }
     }
 
@@ -531,7 +580,7 @@ MeshPiece Decimator::takePiece()
     DecimatorSource from(*this);
     // First what needs the vertices' state besides the vertices themselves: the queued edges (with
     // whether each is stale) and the refused pairs.
-    from.drainQueue([&](uint32_t costBits, uint32_t a, uint32_t b, bool stale) {
+    from.drainQueue([](uint32_t, uint32_t) {}, [&](uint32_t costBits, uint32_t a, uint32_t b, bool stale) {
         piece.queue.emplace_back() = {costBits, a, b, stale};
     });
     piece.refused.reserve(from.refusedCount());  // exactly: a doubling vector held up to twice the pairs
@@ -543,7 +592,7 @@ MeshPiece Decimator::takePiece()
         if (const AttributeQuadric* q = from.attributes(i)) piece.attributes.emplace_back() = *q;
         from.release(i);
     }
-    from.drainFaces([&](const std::array<uint32_t, 3>& f) { piece.faces.emplace_back() = f; });
+    from.drainFaces([](const std::array<uint32_t, 3>&) {}, [&](const std::array<uint32_t, 3>& f) { piece.faces.emplace_back() = f; });
     return piece;
 }
 
@@ -636,7 +685,11 @@ void Decimator::absorbFrom(Source& from)
     std::vector<std::pair<uint32_t, uint32_t>> renumbered(n);
     for (uint32_t v = 0; v < n; ++v) renumbered[v] = {remap[v], mMeta[remap[v]].version};
     const bool pushEach = mHeap.size() > from.queued();
-    from.drainQueue([&](uint32_t costBits, uint32_t ia, uint32_t ib, bool stale) {
+    const auto renumberedAhead = [&](uint32_t ia, uint32_t ib) {
+        __builtin_prefetch(&renumbered[ia]);
+        __builtin_prefetch(&renumbered[ib]);
+    };
+    from.drainQueue(renumberedAhead, [&](uint32_t costBits, uint32_t ia, uint32_t ib, bool stale) {
         const auto [a, va] = renumbered[ia];
         const auto [b, vb] = renumbered[ib];
         // An entry that was stale stays stale (re-evaluated when popped).
@@ -655,7 +708,10 @@ void Decimator::absorbFrom(Source& from)
         const uint32_t a = std::min(remap[ra], remap[rb]), b = std::max(remap[ra], remap[rb]);
         mRefused.emplace_back() = refusal(a, b, folds);
     });
-    from.drainFaces([&](const std::array<uint32_t, 3>& f) { newFace({remap[f[0]], remap[f[1]], remap[f[2]]}); });
+    const auto remapAhead = [&](const std::array<uint32_t, 3>& f) {
+        for (uint32_t v : f) __builtin_prefetch(&remap[v]);
+    };
+    from.drainFaces(remapAhead, [&](const std::array<uint32_t, 3>& f) { newFace({remap[f[0]], remap[f[1]], remap[f[2]]}); });
 }
 
 size_t Decimator::finalizeRemaining()
@@ -1138,9 +1194,17 @@ size_t Decimator::removeDegenerateFaces()
     // float: so the finds are looked at again until a round over them changes nothing. A face can
     // change only at a vertex a fix moved or handed faces to (mMoved), so the next round's finds are
     // the faces there and this round's that are still degenerate: the faces a full scan would find.
+    // A face's corners lie anywhere in the vertex array of a merged mesh: a run's corner records
+    // are fetched together before any is read (kRun).
     std::vector<uint8_t> flat(mFaces.size(), 0);
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
-        for (uint32_t f = r.begin(); f != r.end(); ++f) flat[f] = mFaces[f].alive() && degenerate(f);
+        for (uint32_t first = r.begin(); first < r.end(); first += uint32_t(kRun)) {
+            const uint32_t end = std::min<uint32_t>(r.end(), first + uint32_t(kRun));
+            for (uint32_t f = first; f != end; ++f)
+                if (mFaces[f].alive())
+                    for (uint32_t v : mFaces[f].v) __builtin_prefetch(&mGeom[v].p);
+            for (uint32_t f = first; f != end; ++f) flat[f] = mFaces[f].alive() && degenerate(f);
+        }
     });
     std::vector<uint32_t> candidates;
     for (uint32_t f = 0; f < flat.size(); ++f)
