@@ -1194,16 +1194,15 @@ size_t Decimator::removeDegenerateFaces()
     // float: so the finds are looked at again until a round over them changes nothing. A face can
     // change only at a vertex a fix moved or handed faces to (mMoved), so the next round's finds are
     // the faces there and this round's that are still degenerate: the faces a full scan would find.
-    // A face's corners lie anywhere in the vertex array of a merged mesh: a run's corner records
-    // are fetched together before any is read (kRun).
+    // A face's corners lie anywhere in the vertex array of a merged mesh: the corner records of the
+    // face kScanAhead places on start loading while this one is checked (docs/perf.md).
+    constexpr uint32_t kScanAhead = 16;
     std::vector<uint8_t> flat(mFaces.size(), 0);
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
-        for (uint32_t first = r.begin(); first < r.end(); first += uint32_t(kRun)) {
-            const uint32_t end = std::min<uint32_t>(r.end(), first + uint32_t(kRun));
-            for (uint32_t f = first; f != end; ++f)
-                if (mFaces[f].alive())
-                    for (uint32_t v : mFaces[f].v) __builtin_prefetch(&mGeom[v].p);
-            for (uint32_t f = first; f != end; ++f) flat[f] = mFaces[f].alive() && degenerate(f);
+        for (uint32_t f = r.begin(); f != r.end(); ++f) {
+            if (r.end() - f > kScanAhead && mFaces[f + kScanAhead].alive())
+                for (uint32_t v : mFaces[f + kScanAhead].v) __builtin_prefetch(&mGeom[v].p);
+            flat[f] = mFaces[f].alive() && degenerate(f);
         }
     });
     std::vector<uint32_t> candidates;
