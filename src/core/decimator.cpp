@@ -385,6 +385,22 @@ void Decimator::addBlock(const BlockMesh& block)
 // their cache misses overlap instead of following one another (docs/perf.md).
 static constexpr size_t kRun = 64;
 
+// Calls `ahead` on every element of a run of an array, then `f` on each, freeing the array's chunks
+// as they are passed.
+template <typename T, unsigned Shift, typename Ahead, typename F>
+static void drainInRuns(ChunkedVector<T, Shift>& items, Ahead ahead, F f)
+{
+    const size_t n = items.size();
+    for (size_t run = 0; run < n; run += kRun) {
+        const size_t end = std::min(n, run + kRun);
+        for (size_t i = run; i < end; ++i) ahead(items[i]);
+        for (size_t i = run; i < end; ++i) {
+            f(items[i]);
+            items.releaseThrough(i);
+        }
+    }
+}
+
 // What absorb reads of the other side of a merge, in a piece's numbering (the alive vertices
 // densely, in id order). Each part is read once, in absorb's order, and freed as it is read; `ahead`
 // sees a run's entries (their ends in that numbering) before `f` is called on them.
@@ -406,16 +422,9 @@ public:
     template <typename Ahead, typename F>
     void drainQueue(Ahead ahead, F f)
     {
-        const size_t n = mPiece.queue.size();
-        for (size_t run = 0; run < n; run += kRun) {
-            const size_t end = std::min(n, run + kRun);
-            for (size_t i = run; i < end; ++i) ahead(mPiece.queue[i].a, mPiece.queue[i].b);
-            for (size_t i = run; i < end; ++i) {
-                const MeshPiece::Queued& c = mPiece.queue[i];
-                f(c.costBits, c.a, c.b, c.stale);
-                mPiece.queue.releaseThrough(i);
-            }
-        }
+        drainInRuns(
+            mPiece.queue, [&](const MeshPiece::Queued& c) { ahead(c.a, c.b); },
+            [&](const MeshPiece::Queued& c) { f(c.costBits, c.a, c.b, c.stale); });
         mPiece.queue = {};
     }
     template <typename F>
@@ -427,15 +436,7 @@ public:
     template <typename Ahead, typename F>
     void drainFaces(Ahead ahead, F f)
     {
-        const size_t n = mPiece.faces.size();
-        for (size_t run = 0; run < n; run += kRun) {
-            const size_t end = std::min(n, run + kRun);
-            for (size_t i = run; i < end; ++i) ahead(mPiece.faces[i]);
-            for (size_t i = run; i < end; ++i) {
-                f(mPiece.faces[i]);
-                mPiece.faces.releaseThrough(i);
-            }
-        }
+        drainInRuns(mPiece.faces, ahead, f);
         mPiece = MeshPiece{};
     }
 
