@@ -13,7 +13,9 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
              blocks read which leaf (seconds_samplers): each rank its own (divided by W).
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
-  final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds).
+  final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds). Its
+             zero-area scan over every face (seconds_final_parallel) runs on all of a process's threads:
+             divided among them in the threads' model and the bound, whole for ranks of one thread.
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
 output face of the subtree (measured bytes per rank / faces, docs/scale.md).
 Threads (one process, `-j W`), modelled as pipeline.cpp's localSubtree runs them: the slabs start in order,
@@ -67,6 +69,7 @@ def model(report, wall, even=False):
             node[(l, l + 1)] = mean
     faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
+    scan = report.get("seconds_final_parallel", 0.0)
     count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
     layout = report.get("seconds_layout", 0.0)  # each rank lays out its own slabs' leaves
     layout += report.get("seconds_samplers", 0.0)  # and counts which of its blocks read which leaf
@@ -97,7 +100,8 @@ def model(report, wall, even=False):
         start = setup + (count + layout) / min(w, slabs)
         ranks, ranks_path = parallel(0, slabs, 0, w)
         threads, threads_path = threads_tree(node, slabs, w)
-        t, tt, tb = start + ranks + final, start + threads + final, start + schedule_bound(node, slabs, w) + final
+        threads_final = final - scan + scan / w
+        t, tt, tb = start + ranks + final, start + threads + threads_final, start + schedule_bound(node, slabs, w) + threads_final
         rows.append((w, t, one / t, tt, one / tt, tb, one / tb))
         if w == PATH_WORKERS:
             paths = ranks_path, threads_path
@@ -212,7 +216,8 @@ def main(argv):
         report = json.load(open(argv[i]))
         wall, label = float(argv[i + 1]), argv[i + 2]
         setup, tree, final, rows, critical, thread_path = model(report, wall)
-        print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s")
+        print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
+              f" (of which the zero-area scan {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
         pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
         if pieces:
             print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")

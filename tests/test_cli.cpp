@@ -185,6 +185,9 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     EXPECT_GE(number("seconds_slabs"), 0.0);
     EXPECT_GE(number("seconds_final"), 0.0);
     EXPECT_LE(number("seconds_slabs") + number("seconds_final"), number("seconds"));
+    // The final pass's zero-area scan (it runs, the surface is decimated) is a part of that pass.
+    EXPECT_GT(number("seconds_final_parallel"), 0.0);
+    EXPECT_LE(number("seconds_final_parallel"), number("seconds_final"));
     // The PLY header states the counts the report gives.
     const std::string ply = slurp(d + "/sphere.ply");
     const auto fo = json.find("\"faces_out\": ");

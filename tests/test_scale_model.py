@@ -102,6 +102,20 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[1][6], 1.0)  # one worker: the bound is the serial run
         self.assertAlmostEqual(by_workers[2][5], setup + 4.0 + final)
 
+    def test_final_scan_divided_among_threads(self):
+        # 0.2 s of the final pass is the zero-area scan on all threads: two threads make it 0.1 s, four
+        # 0.05 s; ranks of one thread pay it whole, and one worker is the serial run either way.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        rep["seconds_final_parallel"] = 0.2
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        by_workers = {row[0]: row for row in rows}
+        self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
+        self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final - 0.1)
+        self.assertAlmostEqual(by_workers[2][5], setup + 4.0 + final - 0.1)
+        self.assertAlmostEqual(by_workers[4][3], setup + scale_model.threads_tree(nodes_of(rep), 4, 4)[0] + final - 0.15)
+        self.assertAlmostEqual(by_workers[1][2], 1.0)
+        self.assertAlmostEqual(by_workers[1][4], 1.0)
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -137,7 +137,8 @@ struct Report {
     uint64_t queuePops = 0, queueDead = 0, queueStale = 0, collapseAttempts = 0, collapses = 0;
     double seconds = 0.0;
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
-    double secondsFinal = 0.0;        // of which: merging the slabs and the final pass (serial)
+    double secondsFinal = 0.0;        // of which: the final pass on the whole surface and the result's copy
+    double secondsFinalParallel = 0.0;  // of secondsFinal: the zero-area scan over every face (all threads)
     double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
     double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
     // Of `seconds`, the set-up every rank repeats: opening the file (its checks and topology), choosing

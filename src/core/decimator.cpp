@@ -3,6 +3,7 @@
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -1199,6 +1200,7 @@ size_t Decimator::removeDegenerateFaces()
     // face kScanAhead places on start loading while this one is checked (docs/perf.md).
     constexpr uint32_t kScanAhead = 16;
     std::vector<uint8_t> flat(mFaces.size(), 0);
+    const auto scanStart = std::chrono::steady_clock::now();
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
         for (uint32_t f = r.begin(); f != r.end(); ++f) {
             if (r.end() - f > kScanAhead && mFaces[f + kScanAhead].alive())
@@ -1206,6 +1208,7 @@ size_t Decimator::removeDegenerateFaces()
             flat[f] = mFaces[f].alive() && degenerate(f);
         }
     });
+    mParallelScanSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - scanStart).count();
     std::vector<uint32_t> candidates;
     for (uint32_t f = 0; f < flat.size(); ++f)
         if (flat[f]) candidates.push_back(f);

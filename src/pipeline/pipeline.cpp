@@ -795,10 +795,17 @@ Result PipelineRun::finalPass()
     std::vector<uint64_t> unfinalized(mRoot.size(), 0);
     const size_t seamVertices = whole.decimator().openVertices();
     const size_t traced = slabs.trace.size();
+    const auto scanSeconds = [&] {
+        double s = 0.0;
+        forEachLevel(mRoot, [&](size_t, Integrator& level) { s += level.decimator().parallelScanSeconds(); });
+        return s;
+    };
+    const double scannedBefore = scanSeconds();
     // A chain's levels get their final passes at once (those that have not had it at the root).
     forEachLevel(mRoot, [&](size_t k, Integrator& level) {
         if (!level.finished()) level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
     });
+    rep.secondsFinalParallel = scanSeconds() - scannedBefore;
     rep.unfinalizedAtEnd = unfinalized.front() - seamVertices;
     QueueWork work;
     for (const auto& level : mRoot) work += level->stats().work;

@@ -41,6 +41,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds", r.seconds),
             real("seconds_slabs", r.secondsSlabs),
             real("seconds_final", r.secondsFinal),
+            real("seconds_final_parallel", r.secondsFinalParallel),
             real("seconds_count", r.secondsCount),
             real("seconds_layout", r.secondsLayout),
             real("seconds_open", r.secondsOpen),
