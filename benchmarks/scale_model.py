@@ -14,8 +14,9 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
   tree     : node [l, r) on ranks [a, b): one rank -> the sum of its nodes' seconds (it makes them one
              after another); more -> max(left, right + transfer) + the join's own seconds.
   final    : final pass on rank 0 (seconds_final) plus writing the file (wall - report seconds). Its
-             zero-area scan over every face (seconds_final_parallel) runs on all of a process's threads:
-             divided among them in the threads' model and the bound, whole for ranks of one thread.
+             zero-area scan over every face and the output mesh's collection (seconds_final_parallel) run
+             on all of a process's threads: divided among them in the threads' model and the bound, whole
+             for ranks of one thread.
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
 output face of the subtree (measured bytes per rank / faces, docs/scale.md).
 Threads (one process, `-j W`), modelled as pipeline.cpp's localSubtree runs them: the slabs start in order,
@@ -217,7 +218,7 @@ def main(argv):
         wall, label = float(argv[i + 1]), argv[i + 2]
         setup, tree, final, rows, critical, thread_path = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
-              f" (of which the zero-area scan {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
+              f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
         pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
         if pieces:
             print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")

@@ -185,7 +185,7 @@ TEST(Cli, DefaultOutputNameReportAndSummary)
     EXPECT_GE(number("seconds_slabs"), 0.0);
     EXPECT_GE(number("seconds_final"), 0.0);
     EXPECT_LE(number("seconds_slabs") + number("seconds_final"), number("seconds"));
-    // The final pass's zero-area scan (it runs, the surface is decimated) is a part of that pass.
+    // The final pass's zero-area scan (it runs, the surface is decimated) and the output mesh's collection are a part of that pass.
     EXPECT_GT(number("seconds_final_parallel"), 0.0);
     EXPECT_LE(number("seconds_final_parallel"), number("seconds_final"));
     // The PLY header states the counts the report gives.

@@ -5,6 +5,7 @@
 #include "surface_checks.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -212,6 +213,60 @@ double rmsFromEllipsoid(const Mesh& m, std::array<double, 3> axes)
         sum += f * f / g2;
     }
     return std::sqrt(sum / double(m.points.size()));
+}
+
+// A torus of n x m quads, each split in two, outward: a closed surface, every vertex final.
+BlockMesh torus(uint32_t n, uint32_t m)
+{
+    BlockMesh b;
+    const double pi = std::acos(-1.0);
+    for (uint32_t i = 0; i < n; ++i)
+        for (uint32_t j = 0; j < m; ++j) {
+            const double u = 2 * pi * i / n, v = 2 * pi * j / m, r = 10 + 3 * std::cos(v);
+            b.keys.push_back(makeEdgeKey(int32_t(i), int32_t(j), 0, 0));
+            b.positions.push_back({r * std::cos(u), r * std::sin(u), 3 * std::sin(v)});
+            b.finalAfterBlock.push_back(1);
+        }
+    const auto at = [&](uint32_t i, uint32_t j) { return (i % n) * m + j % m; };
+    for (uint32_t i = 0; i < n; ++i)
+        for (uint32_t j = 0; j < m; ++j) {
+            b.triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+            b.triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+        }
+    return b;
+}
+
+TEST(Decimator, TakenMeshIsTheSameOnAnyThreadCount)
+{
+    // takeMesh collects the live vertices and faces in slot order on all threads, span by span, freeing
+    // what each span has read; mesh() reads the same without freeing. A torus of 40,000 faces
+    // decimated to 4,000 leaves dead slots in every span of both arrays (a span is 16,384 slots).
+    const auto run = [](int threads) {
+        tbb::task_arena arena(threads);
+        return arena.execute([] {
+            Decimator d;
+            d.addBlock(torus(200, 100));
+            d.decimateTo(4000);
+            const size_t faces = d.faceCount(), vertices = d.vertexCount();
+            const Mesh kept = d.mesh();
+            const Mesh taken = d.takeMesh();
+            EXPECT_EQ(taken.points, kept.points);
+            EXPECT_EQ(taken.triangles, kept.triangles);
+            EXPECT_EQ(taken.triangles.size(), faces);
+            EXPECT_EQ(taken.points.size(), vertices);
+            EXPECT_EQ(d.faceCount(), 0u) << "the decimator is left empty";
+            EXPECT_GT(d.parallelSeconds(), 0.0) << "the collection's seconds stay";
+            return taken;
+        });
+    };
+    const Mesh one = run(1);
+    EXPECT_EQ(one.triangles.size(), 4000u);
+    testing::expectClosedOutward(one, false, "decimated torus");
+    for (int threads : {2, 4}) {
+        const Mesh m = run(threads);
+        EXPECT_EQ(m.points, one.points) << threads << " threads";
+        EXPECT_EQ(m.triangles, one.triangles) << threads << " threads";
+    }
 }
 
 TEST(Decimator, RegionByRegionReachesTheTargetAsWellAsOnePass)

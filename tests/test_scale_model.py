@@ -103,8 +103,8 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[2][5], setup + 4.0 + final)
 
     def test_final_scan_divided_among_threads(self):
-        # 0.2 s of the final pass is the zero-area scan on all threads: two threads make it 0.1 s, four
-        # 0.05 s; ranks of one thread pay it whole, and one worker is the serial run either way.
+        # 0.2 s of the final pass runs on all threads (the zero-area scan, the mesh's collection): two
+        # threads make it 0.1 s, four 0.05 s; ranks of one thread pay it whole, and one worker is the serial run either way.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
         rep["seconds_final_parallel"] = 0.2
         setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)

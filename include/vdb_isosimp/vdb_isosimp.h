@@ -138,7 +138,7 @@ struct Report {
     double seconds = 0.0;
     double secondsSlabs = 0.0;        // of which: extraction and decimation of the slabs (parallel)
     double secondsFinal = 0.0;        // of which: the final pass on the whole surface and the result's copy
-    double secondsFinalParallel = 0.0;  // of secondsFinal: the zero-area scan over every face (all threads)
+    double secondsFinalParallel = 0.0;  // of secondsFinal: on all threads (the zero-area scan, the mesh's collection)
     double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
     double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
     // Of `seconds`, the set-up every rank repeats: opening the file (its checks and topology), choosing

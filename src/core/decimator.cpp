@@ -8,6 +8,7 @@
 #include <cstring>
 #include <iterator>
 #include <limits>
+#include <numeric>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -1208,7 +1209,7 @@ size_t Decimator::removeDegenerateFaces()
             flat[f] = mFaces[f].alive() && degenerate(f);
         }
     });
-    mParallelScanSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - scanStart).count();
+    mParallelSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - scanStart).count();
     std::vector<uint32_t> candidates;
     for (uint32_t f = 0; f < flat.size(); ++f)
         if (flat[f]) candidates.push_back(f);
@@ -1364,23 +1365,52 @@ void Decimator::requeueAll()
 template <typename VerticesRead, typename FacesRead>
 Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) const
 {
+    // Live vertices and faces in slot order (deterministic for a deterministic input sequence), on
+    // all threads: every span of slots counts its live records, then writes them from its offset.
+    // A span is whole chunks of every array, so the callbacks may free what a span has read while
+    // the others still read theirs.
+    static_assert(decltype(mGeom)::kChunk == decltype(mMeta)::kChunk && decltype(mMeta)::kChunk == decltype(mFaces)::kChunk,
+                  "spans cover whole chunks of every array");
+    constexpr size_t kSpan = 4 * decltype(mMeta)::kChunk;
+    const auto spans = [](size_t n) { return (n + kSpan - 1) / kSpan; };
+    // first[s]: how many live records lie before span s.
+    const auto offsets = [&](size_t n, const auto& live) {
+        std::vector<size_t> first(spans(n) + 1, 0);
+        tbb::parallel_for(size_t(0), spans(n), [&](size_t s) {
+            size_t count = 0;
+            for (size_t i = s * kSpan; i < std::min(n, (s + 1) * kSpan); ++i) count += live(i);
+            first[s + 1] = count;
+        });
+        std::partial_sum(first.begin(), first.end(), first.begin());
+        return first;
+    };
     Mesh m;
-    m.points.reserve(mVertexCount);
-    m.triangles.reserve(mFaceCount);
-    std::vector<uint32_t> remap(mMeta.size(), UINT32_MAX);
-    // Vertices and faces in slot order: deterministic for a deterministic input sequence.
-    for (uint32_t v = 0; v < mMeta.size(); ++v) {
-        if (mMeta[v].alive) {
-            remap[v] = uint32_t(m.points.size());
-            m.points.push_back({float(mGeom[v].p[0]), float(mGeom[v].p[1]), float(mGeom[v].p[2])});
+    const size_t slots = mMeta.size();
+    const std::vector<size_t> firstVertex = offsets(slots, [&](size_t v) { return mMeta[v].alive != 0; });
+    m.points.resize(firstVertex.back());
+    std::vector<uint32_t> remap(slots, UINT32_MAX);
+    tbb::parallel_for(size_t(0), spans(slots), [&](size_t s) {
+        size_t out = firstVertex[s];
+        for (size_t v = s * kSpan; v < std::min(slots, (s + 1) * kSpan); ++v) {
+            if (mMeta[v].alive) {
+                remap[v] = uint32_t(out);
+                const V3& p = mGeom[v].p;
+                m.points[out++] = {float(p[0]), float(p[1]), float(p[2])};
+            }
+            verticesRead(v);
         }
-        verticesRead(v);
-    }
-    for (size_t i = 0; i < mFaces.size(); ++i) {
-        const Face& f = mFaces[i];
-        if (f.alive()) m.triangles.push_back({remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]});
-        facesRead(i);
-    }
+    });
+    const size_t faces = mFaces.size();
+    const std::vector<size_t> firstFace = offsets(faces, [&](size_t i) { return mFaces[i].alive(); });
+    m.triangles.resize(firstFace.back());
+    tbb::parallel_for(size_t(0), spans(faces), [&](size_t s) {
+        size_t out = firstFace[s];
+        for (size_t i = s * kSpan; i < std::min(faces, (s + 1) * kSpan); ++i) {
+            const Face& f = mFaces[i];
+            if (f.alive()) m.triangles[out++] = {remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]};
+            facesRead(i);
+        }
+    });
     return m;
 }
 
@@ -1399,13 +1429,16 @@ Mesh Decimator::takeMesh()
     mFreeFaces = {};
     mDrift = {};
     mAttrQ = {};
+    const auto start = std::chrono::steady_clock::now();
     Mesh m = collectMesh(
         [this](size_t v) {
             mGeom.releaseThrough(v);
             mMeta.releaseThrough(v);
         },
         [this](size_t i) { mFaces.releaseThrough(i); });
+    const double parallel = mParallelSeconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     *this = Decimator{};
+    mParallelSeconds = parallel;
     return m;
 }
 

@@ -128,9 +128,10 @@ public:
     // squared bounding-box diagonal: coincident vertices where voxels sit at the iso-value), and drops
     // tiny components that are flat all over (no area, no volume). Returns how many remain.
     size_t removeDegenerateFaces();
-    // Seconds this decimator spent in removeDegenerateFaces' scan over every face, the one part of a
-    // final pass that runs on all threads (the report keeps it apart for the scaling model).
-    double parallelScanSeconds() const { return mParallelScanSeconds; }
+    // Seconds this decimator spent in the parts of a final pass that run on all threads:
+    // removeDegenerateFaces' scan over every face and takeMesh's collection of the output mesh (the
+    // report keeps them apart for the scaling model).
+    double parallelSeconds() const { return mParallelSeconds; }
 
     // Last resort when edge collapses cannot reach the target (many small closed components, each
     // already minimal, as in noisy CT data): removes whole components, smallest area first, never the
@@ -204,7 +205,7 @@ public:
     Mesh mesh() const;
     // The same mesh, made while the decimator lets go of its arrays: the queue and the rest first, then
     // each chunk of vertices and faces once copied, so the run's end holds the decimator or the mesh,
-    // not both. The decimator is left empty.
+    // not both. The decimator is left empty but for parallelSeconds().
     Mesh takeMesh();
 
 private:
@@ -402,7 +403,7 @@ private:
     ChunkedVector<float> mDrift;
     double mAttrWeight2 = 0.0;
     ChunkedVector<AttributeQuadric> mAttrQ;  // per vertex, written around it; empty without a weight
-    double mParallelScanSeconds = 0.0;
+    double mParallelSeconds = 0.0;
     double mZeroArea = 0.0;  // faces of at most this area count as degenerate (removeDegenerateFaces)
     std::vector<uint32_t>* mMoved = nullptr;  // removeDegenerateFaces: vertices whose faces a fix changed
     std::function<bool()> mStop;

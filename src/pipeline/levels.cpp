@@ -54,6 +54,14 @@ uint64_t coarserLevelTarget(const Options& o, uint64_t facesFull, size_t level)
     return uint64_t(std::llround(o.lods[level] * double(facesFull)));
 }
 
+Mesh takeLevelMesh(Integrator& level, Report& rep)
+{
+    const double before = level.decimator().parallelSeconds();
+    Mesh mesh = level.decimator().takeMesh();
+    rep.secondsFinalParallel += level.decimator().parallelSeconds() - before;
+    return mesh;
+}
+
 Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSampler& attributes, const Stopwatch& clock)
 {
     Mesh mesh;
@@ -63,7 +71,7 @@ Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSa
         level.ratio = o.lods[i];
         level.facesTarget = levelTarget(o, rep, i);
         rep.maxErrorAccepted = std::max({rep.maxErrorAccepted, whole.stats().maxErrorAccepted, whole.decimator().maxErrorAccepted()});
-        mesh = whole.decimator().takeMesh();
+        mesh = takeLevelMesh(whole, rep);
         mesh.attributes = attributes.sample(mesh.points);
         level.facesOut = mesh.triangles.size();
         level.vertsOut = mesh.points.size();

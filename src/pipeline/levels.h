@@ -36,6 +36,10 @@ uint64_t coarserLevelTarget(const Options& options, uint64_t facesFull, size_t l
 // given with them.
 void checkLods(const Options& options);
 
+// A level's mesh after its final pass, the integrator left empty; the seconds its collection runs on
+// all threads count among the report's secondsFinalParallel.
+Mesh takeLevelMesh(Integrator& level, Report& report);
+
 // The tree's root, every level after its final pass (levelTarget): hands every level, with its
 // attributes, to options.onLevel, lets each level but the last go once it is handed on, fills
 // report.levels; returns the last level's mesh.

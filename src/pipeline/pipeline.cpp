@@ -795,17 +795,17 @@ Result PipelineRun::finalPass()
     std::vector<uint64_t> unfinalized(mRoot.size(), 0);
     const size_t seamVertices = whole.decimator().openVertices();
     const size_t traced = slabs.trace.size();
-    const auto scanSeconds = [&] {
+    const auto parallelSeconds = [&] {
         double s = 0.0;
-        forEachLevel(mRoot, [&](size_t, Integrator& level) { s += level.decimator().parallelScanSeconds(); });
+        for (const auto& level : mRoot) s += level->decimator().parallelSeconds();
         return s;
     };
-    const double scannedBefore = scanSeconds();
+    const double parallelBefore = parallelSeconds();
     // A chain's levels get their final passes at once (those that have not had it at the root).
     forEachLevel(mRoot, [&](size_t k, Integrator& level) {
         if (!level.finished()) level.finish(levelTarget(mOpt, rep, k), facesGenerated, unfinalized[k]);
     });
-    rep.secondsFinalParallel = scanSeconds() - scannedBefore;
+    rep.secondsFinalParallel = parallelSeconds() - parallelBefore;
     rep.unfinalizedAtEnd = unfinalized.front() - seamVertices;
     QueueWork work;
     for (const auto& level : mRoot) work += level->stats().work;
@@ -821,7 +821,7 @@ Result PipelineRun::finalPass()
     rep.maxErrorAccepted = std::max(all.maxErrorAccepted, whole.decimator().maxErrorAccepted());
     mAttributes->load();
     if (mOpt.lods.empty()) {
-        mResult.mesh = whole.decimator().takeMesh();
+        mResult.mesh = takeLevelMesh(whole, rep);
         mResult.mesh.attributes = mAttributes->sample(mResult.mesh.points);
     } else {
         // Each level is made from the one before, handed over and let go; the last one is the result.
