@@ -132,6 +132,37 @@ TEST(QuadHeap, GrowsAndShrinksAcrossChunks)
     EXPECT_EQ(heap.size(), 1u);
 }
 
+TEST(QuadHeap, ADrainedHeapsChunksServeTheHeapItFills)
+{
+    // A merge drains one heap into another (drain's `into`): the chunks the drain has read serve the
+    // other heap's growth. Entries pushed while the drain runs, into chunks that held the drained
+    // heap's entries, and more pushed after it, pop in order against the reference.
+    std::mt19937_64 rng(5);
+    QuadHeap<Entry> from, into;
+    std::vector<Entry> ignored, reference;
+    uint32_t id = 0;
+    addBoth(from, ignored, rng, id, 100000, 1000, false);
+    addBoth(into, reference, rng, id, 20000, 1000, false);
+    from.drain(
+        [&](const Entry& e) {
+            if (e.id % 3 == 0) return;  // entries a merge drops (dead) leave chunks over
+            into.push(e);
+            reference.push_back(e);
+        },
+        &into);
+    EXPECT_TRUE(from.empty());
+    addBoth(into, reference, rng, id, 30000, 1000, false);
+    into.dropSpares();
+    ASSERT_EQ(into.size(), reference.size());
+    std::sort(reference.begin(), reference.end(), [](const Entry& a, const Entry& b) { return b < a; });
+    for (size_t i = 0; !reference.empty(); ++i) {
+        const Entry got = into.pop();
+        ASSERT_EQ(got.id, reference.back().id) << "pop " << i;
+        reference.pop_back();
+    }
+    EXPECT_TRUE(into.empty());
+}
+
 TEST(QuadHeap, SiblingGroupsStartOnCacheLines)
 {
     QuadHeap<Entry> heap;

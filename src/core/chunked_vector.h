@@ -39,10 +39,32 @@ public:
     T& operator[](size_t i) { return mChunks[i >> Shift][i & (kChunk - 1)]; }
     const T& operator[](size_t i) const { return mChunks[i >> Shift][i & (kChunk - 1)]; }
 
-    // Appends a value-initialised element.
-    T& emplace_back()
+    // Chunks another array let go (releaseThrough), for emplace_back to fill again instead of fresh
+    // memory: a fresh chunk of a few hundred KiB is mapped on its own, and the kernel faults in and
+    // zeroes each of its pages on first touch. Spare room, not content: a copy starts without any. At
+    // most kMaxSpares wait: a reader that lets go of chunks faster than the writer fills them (dead
+    // slots it skips) frees the rest at once, as without spares.
+    static constexpr size_t kMaxSpares = 1;
+    struct Spares {
+        std::vector<std::unique_ptr<T[]>> chunks;
+        Spares() = default;
+        Spares(const Spares&) {}
+        Spares& operator=(const Spares&) { return *this; }
+        Spares(Spares&&) noexcept = default;
+        Spares& operator=(Spares&&) noexcept = default;
+    };
+
+    // Appends a value-initialised element (in a spare chunk, if it needs a chunk and one is there).
+    T& emplace_back(Spares* spares = nullptr)
     {
-        if (mSize == mChunks.size() * kChunk) mChunks.push_back(std::make_unique<T[]>(kChunk));
+        if (mSize == mChunks.size() * kChunk) {
+            if (spares && !spares->chunks.empty()) {
+                mChunks.push_back(std::move(spares->chunks.back()));
+                spares->chunks.pop_back();
+            } else {
+                mChunks.push_back(std::make_unique<T[]>(kChunk));
+            }
+        }
         T& x = (*this)[mSize++];
         x = T{};
         return x;
@@ -59,9 +81,11 @@ public:
     // For an array read once front to back before it is discarded: element i, the last read so far,
     // is done with; its chunk is freed once i is the chunk's last element (nothing before i in that
     // chunk may be accessed again).
-    void releaseThrough(size_t i)
+    void releaseThrough(size_t i, Spares* spares = nullptr)
     {
-        if (((i + 1) & (kChunk - 1)) == 0) mChunks[i >> Shift].reset();
+        if (((i + 1) & (kChunk - 1)) != 0) return;
+        if (spares && spares->chunks.size() < kMaxSpares) spares->chunks.push_back(std::move(mChunks[i >> Shift]));
+        else mChunks[i >> Shift].reset();
     }
 
     template <typename Ref, typename Owner>

@@ -72,7 +72,7 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
         mFreeVerts.pop_back();
     } else {
         id = uint32_t(mMeta.size());
-        mGeom.emplace_back();
+        mGeom.emplace_back(&mGeomSpares);
         mMeta.emplace_back();
     }
     mGeom[id] = {p, Quadric{}};
@@ -451,7 +451,11 @@ private:
 // decided here once. The decimator is left empty.
 class Decimator::DecimatorSource {
 public:
-    explicit DecimatorSource(Decimator& d) : mDec(d), mDense(d.mMeta.size(), kNone), mQueueable(d.mMeta.size(), {kNone, 0})
+    // recycler: the decimator absorbing this one, which fills the geometry and queue chunks read
+    // again as it grows; null: they are freed.
+    explicit DecimatorSource(Decimator& d, Decimator* recycler = nullptr)
+        : mDec(d), mGeomSpares(recycler ? &recycler->mGeomSpares : nullptr), mHeapInto(recycler ? &recycler->mHeap : nullptr),
+          mDense(d.mMeta.size(), kNone), mQueueable(d.mMeta.size(), {kNone, 0})
     {
         mIds.reserve(d.mVertexCount);  // exactly: a doubling vector held up to twice the numbers, at a merge's peak
         for (uint32_t v = 0; v < d.mMeta.size(); ++v)
@@ -483,7 +487,7 @@ public:
     void release(uint32_t i)
     {
         for (; mReleased <= mIds[i]; ++mReleased) {
-            mDec.mGeom.releaseThrough(mReleased);
+            mDec.mGeom.releaseThrough(mReleased, mGeomSpares);
             mDec.mMeta.releaseThrough(mReleased);
         }
     }
@@ -519,10 +523,12 @@ public:
             }
             n = 0;
         };
-        mDec.mHeap.drain([&](const Candidate& c) {
-            run[n++] = c;
-            if (n == kRun) flush();
-        });
+        mDec.mHeap.drain(
+            [&](const Candidate& c) {
+                run[n++] = c;
+                if (n == kRun) flush();
+            },
+            mHeapInto);
         flush();
         mQueueable = {};
     }
@@ -571,6 +577,8 @@ private:
     bool live(const Refused& r) const { return mDense[r.a] != kNone && mDense[r.b] != kNone; }
 
     Decimator& mDec;
+    ChunkedVector<VertexGeom>::Spares* mGeomSpares;
+    QuadHeap<Candidate>* mHeapInto;
     std::vector<uint32_t> mDense;  // per slot: the vertex's number here, kNone if dead
     std::vector<uint32_t> mIds;    // per number: the slot
     std::vector<Renumbered> mQueueable;
@@ -641,8 +649,12 @@ void Decimator::absorb(MeshPiece&& piece)
 
 void Decimator::absorb(Decimator&& other)
 {
-    DecimatorSource from(other);
+    // The other side's geometry and queue chunks, once read, become this side's new ones: at the top
+    // of the merge tree fresh chunks' page faults took a fifth or more of a join (docs/perf.md).
+    DecimatorSource from(other, this);
     absorbFrom(from);
+    mGeomSpares.chunks.clear();
+    mHeap.dropSpares();
 }
 
 template <typename Source>

@@ -348,6 +348,7 @@ private:
     Mesh collectMesh(VerticesRead verticesRead, FacesRead facesRead) const;
 
     ChunkedVector<VertexGeom> mGeom;
+    ChunkedVector<VertexGeom>::Spares mGeomSpares;  // during absorb(Decimator&&): the other side's read chunks
     ChunkedVector<VertexMeta> mMeta;
     ChunkedVector<Face> mFaces;
     std::vector<uint32_t> mFreeVerts, mFreeFaces;

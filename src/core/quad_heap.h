@@ -27,6 +27,7 @@ class QuadHeap {
     // Logical entry i sits at position i + kPad; its children 4i+1..4i+4 then start at byte 64(i+1).
     static constexpr size_t kPad = 3;
     static constexpr std::align_val_t kAlign{64};
+    static constexpr size_t kMaxSpares = 1;
     struct Free {
         void operator()(T* p) const { ::operator delete(p, kAlign); }
     };
@@ -61,6 +62,8 @@ public:
         if (mChunks.size() > used) mChunks.resize(used);
         mCold.truncate(mCold.size());
     }
+    // Frees the chunks another heap's drain handed over that no push has filled.
+    void dropSpares() { mSpare.clear(); }
     void clear()
     {
         mEnd = kPad;
@@ -74,13 +77,17 @@ public:
     const T& entry(size_t i) const { return slot(i + kPad); }
 
     // Calls f on every entry (the ordered part in array order, then the cold ones in the order they
-    // went cold), freeing the storage as it goes; the heap is left empty.
+    // went cold), freeing the storage as it goes, or handing each chunk to heap `into` to fill again as
+    // it grows (a fresh chunk costs a page fault per 4 KiB; at most kMaxSpares wait there, the rest
+    // are freed, as entries dropped on the way leave chunks over); the heap is left empty.
     template <typename F>
-    void drain(F f)
+    void drain(F f, QuadHeap* into = nullptr)
     {
         for (size_t p = kPad; p < mEnd; ++p) {
             f(slot(p));
-            if (((p + 1) & (kChunk - 1)) == 0) mChunks[p >> kShift].reset();
+            if (((p + 1) & (kChunk - 1)) != 0) continue;
+            if (into && into->mSpare.size() < kMaxSpares) into->mSpare.push_back(std::move(mChunks[p >> kShift]));
+            else mChunks[p >> kShift].reset();
         }
         for (size_t i = 0; i < mCold.size(); ++i) {
             f(mCold[i]);
@@ -212,7 +219,14 @@ private:
 
     void pushBack(const T& x)
     {
-        if ((mEnd >> kShift) == mChunks.size()) mChunks.push_back(newChunk());
+        if ((mEnd >> kShift) == mChunks.size()) {
+            if (mSpare.empty()) {
+                mChunks.push_back(newChunk());
+            } else {
+                mChunks.push_back(std::move(mSpare.back()));
+                mSpare.pop_back();
+            }
+        }
         slot(mEnd++) = x;
     }
 
@@ -255,6 +269,7 @@ private:
     }
 
     std::vector<Chunk> mChunks;
+    std::vector<Chunk> mSpare;  // chunks another heap's drain handed over (drain), until dropSpares
     size_t mEnd = kPad;
     bool mUnordered = false;
     ChunkedVector<T> mCold;  // entries not below mColdFrom, while mHasCold (coolFrom)
