@@ -22,13 +22,13 @@ TEST(ChunkedVector, AChunkLetGoIsFilledAgainByTheNextArray)
     for (uint32_t i = 0; i < 48; ++i) from.emplace_back() = {1.5, i};
     const Record* firstChunk = &from[0];
     // Reading the first two chunks through lets them go: the first waits as a spare, the second is
-    // freed (at most kMaxSpares, 1, wait).
+    // freed (at most kMax, 1, wait).
     for (size_t i = 0; i < 32; ++i) from.releaseThrough(i, &spares);
-    EXPECT_EQ(spares.chunks.size(), Array::kMaxSpares);
+    EXPECT_EQ(spares.size(), Array::Spares::kMax);
     EXPECT_EQ(from[40].id, 40u) << "the chunks not read through stay";
     // The next array's first chunk is the spare, its element value-initialised, not the old content.
     Record& first = into.emplace_back(&spares);
-    EXPECT_TRUE(spares.chunks.empty());
+    EXPECT_EQ(spares.size(), 0u);
     EXPECT_EQ(&first, firstChunk);
     EXPECT_EQ(first.id, 0u);
     EXPECT_EQ(first.x, 0.0);
@@ -40,8 +40,8 @@ TEST(ChunkedVector, AChunkLetGoIsFilledAgainByTheNextArray)
     Array::Spares more;
     from.releaseThrough(47, &more);
     const Array::Spares copy(more);
-    EXPECT_EQ(more.chunks.size(), 1u);
-    EXPECT_TRUE(copy.chunks.empty());
+    EXPECT_EQ(more.size(), 1u);
+    EXPECT_EQ(copy.size(), 0u);
 }
 
 } // namespace

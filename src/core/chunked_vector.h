@@ -12,6 +12,44 @@
 
 namespace vdb_isosimp {
 
+// Chunks one array let go of, for another to fill again instead of fresh memory: a fresh chunk of a
+// few hundred KiB is mapped on its own, and the kernel faults in and zeroes each of its pages on first
+// touch (a merge reads one decimator's arrays while it grows another's). At most kMax wait: a reader
+// that lets go of chunks faster than the writer fills them (dead slots, dropped entries) frees the
+// rest at once, as without spares. Spare room, not content: a copy starts without any.
+template <typename Chunk>
+class SpareChunks {
+public:
+    static constexpr size_t kMax = 1;
+
+    SpareChunks() = default;
+    SpareChunks(const SpareChunks&) {}
+    SpareChunks& operator=(const SpareChunks&) { return *this; }
+    SpareChunks(SpareChunks&&) noexcept = default;
+    SpareChunks& operator=(SpareChunks&&) noexcept = default;
+
+    size_t size() const { return mChunks.size(); }
+    void clear() { mChunks.clear(); }
+    // Keeps the chunk if fewer than kMax wait, frees it otherwise.
+    void give(Chunk&& chunk)
+    {
+        if (mChunks.size() < kMax) mChunks.push_back(std::move(chunk));
+        else chunk.reset();
+    }
+    // A waiting chunk, or fresh() if none waits.
+    template <typename Fresh>
+    Chunk take(Fresh fresh)
+    {
+        if (mChunks.empty()) return fresh();
+        Chunk c = std::move(mChunks.back());
+        mChunks.pop_back();
+        return c;
+    }
+
+private:
+    std::vector<Chunk> mChunks;
+};
+
 template <typename T, unsigned Shift = 12>
 class ChunkedVector {
 public:
@@ -39,31 +77,15 @@ public:
     T& operator[](size_t i) { return mChunks[i >> Shift][i & (kChunk - 1)]; }
     const T& operator[](size_t i) const { return mChunks[i >> Shift][i & (kChunk - 1)]; }
 
-    // Chunks another array let go (releaseThrough), for emplace_back to fill again instead of fresh
-    // memory: a fresh chunk of a few hundred KiB is mapped on its own, and the kernel faults in and
-    // zeroes each of its pages on first touch. Spare room, not content: a copy starts without any. At
-    // most kMaxSpares wait: a reader that lets go of chunks faster than the writer fills them (dead
-    // slots it skips) frees the rest at once, as without spares.
-    static constexpr size_t kMaxSpares = 1;
-    struct Spares {
-        std::vector<std::unique_ptr<T[]>> chunks;
-        Spares() = default;
-        Spares(const Spares&) {}
-        Spares& operator=(const Spares&) { return *this; }
-        Spares(Spares&&) noexcept = default;
-        Spares& operator=(Spares&&) noexcept = default;
-    };
+    // Chunks releaseThrough lets go of, for another array's emplace_back.
+    using Spares = SpareChunks<std::unique_ptr<T[]>>;
 
-    // Appends a value-initialised element (in a spare chunk, if it needs a chunk and one is there).
+    // Appends a value-initialised element (in a spare chunk, if it needs a chunk and one waits).
     T& emplace_back(Spares* spares = nullptr)
     {
         if (mSize == mChunks.size() * kChunk) {
-            if (spares && !spares->chunks.empty()) {
-                mChunks.push_back(std::move(spares->chunks.back()));
-                spares->chunks.pop_back();
-            } else {
-                mChunks.push_back(std::make_unique<T[]>(kChunk));
-            }
+            const auto fresh = [] { return std::make_unique<T[]>(kChunk); };
+            mChunks.push_back(spares ? spares->take(fresh) : fresh());
         }
         T& x = (*this)[mSize++];
         x = T{};
@@ -84,7 +106,7 @@ public:
     void releaseThrough(size_t i, Spares* spares = nullptr)
     {
         if (((i + 1) & (kChunk - 1)) != 0) return;
-        if (spares && spares->chunks.size() < kMaxSpares) spares->chunks.push_back(std::move(mChunks[i >> Shift]));
+        if (spares) spares->give(std::move(mChunks[i >> Shift]));
         else mChunks[i >> Shift].reset();
     }
 

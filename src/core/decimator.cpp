@@ -653,7 +653,7 @@ void Decimator::absorb(Decimator&& other)
     // of the merge tree fresh chunks' page faults took a fifth or more of a join (docs/perf.md).
     DecimatorSource from(other, this);
     absorbFrom(from);
-    mGeomSpares.chunks.clear();
+    mGeomSpares.clear();
     mHeap.dropSpares();
 }
 

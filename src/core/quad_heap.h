@@ -27,7 +27,6 @@ class QuadHeap {
     // Logical entry i sits at position i + kPad; its children 4i+1..4i+4 then start at byte 64(i+1).
     static constexpr size_t kPad = 3;
     static constexpr std::align_val_t kAlign{64};
-    static constexpr size_t kMaxSpares = 1;
     struct Free {
         void operator()(T* p) const { ::operator delete(p, kAlign); }
     };
@@ -78,15 +77,14 @@ public:
 
     // Calls f on every entry (the ordered part in array order, then the cold ones in the order they
     // went cold), freeing the storage as it goes, or handing each chunk to heap `into` to fill again as
-    // it grows (a fresh chunk costs a page fault per 4 KiB; at most kMaxSpares wait there, the rest
-    // are freed, as entries dropped on the way leave chunks over); the heap is left empty.
+    // it grows (SpareChunks); the heap is left empty.
     template <typename F>
     void drain(F f, QuadHeap* into = nullptr)
     {
         for (size_t p = kPad; p < mEnd; ++p) {
             f(slot(p));
             if (((p + 1) & (kChunk - 1)) != 0) continue;
-            if (into && into->mSpare.size() < kMaxSpares) into->mSpare.push_back(std::move(mChunks[p >> kShift]));
+            if (into) into->mSpare.give(std::move(mChunks[p >> kShift]));
             else mChunks[p >> kShift].reset();
         }
         for (size_t i = 0; i < mCold.size(); ++i) {
@@ -219,14 +217,7 @@ private:
 
     void pushBack(const T& x)
     {
-        if ((mEnd >> kShift) == mChunks.size()) {
-            if (mSpare.empty()) {
-                mChunks.push_back(newChunk());
-            } else {
-                mChunks.push_back(std::move(mSpare.back()));
-                mSpare.pop_back();
-            }
-        }
+        if ((mEnd >> kShift) == mChunks.size()) mChunks.push_back(mSpare.take(newChunk));
         slot(mEnd++) = x;
     }
 
@@ -269,7 +260,7 @@ private:
     }
 
     std::vector<Chunk> mChunks;
-    std::vector<Chunk> mSpare;  // chunks another heap's drain handed over (drain), until dropSpares
+    SpareChunks<Chunk> mSpare;  // chunks another heap's drain handed over (drain), until dropSpares
     size_t mEnd = kPad;
     bool mUnordered = false;
     ChunkedVector<T> mCold;  // entries not below mColdFrom, while mHasCold (coolFrom)
