@@ -321,9 +321,9 @@ TEST(Decimator, SameCollapsesInAnyUnitGivenTheVoxelArea)
 
 // The two halves of an ellipsoid (faces above and below z = 0) as two slabs: vertices of both halves
 // are open in each, the others final.
-std::array<BlockMesh, 2> ellipsoidHalves()
+std::array<BlockMesh, 2> ellipsoidHalves(int levels = 4)
 {
-    const BlockMesh whole = ellipsoid(4, {24, 8, 4}, 1.0);
+    const BlockMesh whole = ellipsoid(levels, {24, 8, 4}, 1.0);
     std::vector<int> side(whole.keys.size(), 0);  // bit 0: used below, bit 1: used above
     auto above = [&](const std::array<uint32_t, 3>& t) {
         return whole.positions[t[0]][2] + whole.positions[t[1]][2] + whole.positions[t[2]][2] > 0;
@@ -380,6 +380,67 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_LE(home.triangles.size(), 120u);
     EXPECT_EQ(home.triangles, travelled.triangles);
     EXPECT_EQ(home.points, travelled.points);
+}
+
+TEST(Decimator, AQueueThatForgetsItsColdEntriesMakesTheSameCollapses)
+{
+    // A large queue drops the entries above the cost its pass reached and lists every edge again when
+    // its heap runs out below that bar. Two halves of 16,384 faces decimated in passes, joined in
+    // place, through a piece and through a piece's bytes, then decimated on: the absorbed side's queue
+    // forgetting (the joined queue must then forget too), or both, gives the same mesh as every queue
+    // keeping its entries. (Dropped stale entries come back at
+    // their edge's cost of now, which a stale entry's bound reaches when it is popped; dropped dead
+    // ones never come back.)
+    enum class Join { InPlace, Piece, Bytes };
+    struct Result {
+        Mesh mesh;
+        size_t queuedBeforeJoin = 0, collapses = 0;
+    };
+    auto run = [](int forgetting, Join join) {
+        const bool forget = forgetting > 0;
+        const std::array<BlockMesh, 2> halves = ellipsoidHalves(6);
+        Decimator lower, upper;
+        upper.setForgetAboveEntries(forgetting > 0 ? 0 : SIZE_MAX);
+        lower.setForgetAboveEntries(forgetting > 1 ? 0 : SIZE_MAX);
+        lower.addBlock(halves[0]);
+        upper.addBlock(halves[1]);
+        for (size_t target : {12000, 8000, 5000, 3000})
+            for (Decimator* d : {&lower, &upper}) d->decimateTo(target);
+        Result r;
+        r.queuedBeforeJoin = lower.queued() + upper.queued();
+        if (join == Join::InPlace) {
+            lower.absorb(std::move(upper));
+        } else {
+            SlabPiece piece{upper.takePiece(), 0, {}};
+            EXPECT_EQ(piece.mesh.forgetFromBits != 0, forget);
+            if (join == Join::Bytes) {
+                std::vector<char> bytes;
+                const uint32_t bar = piece.mesh.forgetFromBits;
+                writePieceBytes(std::move(piece), bytes);
+                piece = readPieceBytes(bytes.data(), bytes.size());
+                EXPECT_EQ(piece.mesh.forgetFromBits, bar);
+            }
+            lower.absorb(std::move(piece.mesh));
+        }
+        lower.finalizeRemaining();
+        for (size_t target : {2000, 1000, 400}) lower.decimateTo(target);
+        r.mesh = lower.mesh();
+        r.collapses = lower.work().collapses;
+        return r;
+    };
+    for (Join join : {Join::InPlace, Join::Piece, Join::Bytes})
+      for (int forgetting : {1, 2}) {
+        SCOPED_TRACE("join " + std::to_string(int(join)) + ", queues forgetting " + std::to_string(forgetting));
+        const Result kept = run(0, join), forgot = run(forgetting, join);
+        std::printf("queued before the join: %zu kept, %zu with %d forgetting; %zu collapses\n", kept.queuedBeforeJoin,
+                    forgot.queuedBeforeJoin, forgetting, kept.collapses);
+        EXPECT_LT(forgot.queuedBeforeJoin, kept.queuedBeforeJoin * (forgetting == 2 ? 2 : 3) / 4) << "most of a queue lay above its bar";
+        EXPECT_EQ(forgot.mesh.triangles.size(), 400u);
+        EXPECT_EQ(forgot.collapses, kept.collapses);
+        EXPECT_EQ(forgot.mesh.triangles, kept.mesh.triangles);
+        EXPECT_EQ(forgot.mesh.points, kept.mesh.points);
+        testing::expectClosedOutward(forgot.mesh, false, "forgetting queues");
+    }
 }
 
 TEST(Decimator, ADecimatorAbsorbedInPlaceGivesThePiecesMesh)

@@ -103,6 +103,53 @@ TEST(QuadHeap, ColdEntriesComeBackInOrder)
     EXPECT_TRUE(heap.empty());
 }
 
+TEST(QuadHeap, AForgettingHeapHoldsOnlyWhatLiesBelowItsBar)
+{
+    // forgetFrom drops the entries not below the bar, and those pushed or appended later; the rest
+    // pop in order. A lower bar drops more, a higher one none back; a copy forgets alike; clear() and a
+    // drain end the forgetting. (The decimator lists the dropped edges again: test_decimator.cpp.)
+    std::mt19937_64 rng(17);
+    QuadHeap<Entry> heap;
+    std::vector<Entry> reference;
+    uint32_t id = 0;
+    addBoth(heap, reference, rng, id, 3000, 1000, false);
+    const auto below = [&](uint64_t bar) {
+        reference.erase(std::remove_if(reference.begin(), reference.end(), [&](const Entry& e) { return e.key >= bar; }),
+                        reference.end());
+    };
+    heap.forgetFrom(Entry{600, 0, 0});
+    below(600);
+    EXPECT_TRUE(heap.forgets());
+    Entry bar;
+    ASSERT_TRUE(heap.forgetBar(bar));
+    EXPECT_EQ(bar.key, 600u);
+    ASSERT_EQ(heap.size(), reference.size());
+    for (int round = 0; round < 6; ++round) {
+        addBoth(heap, reference, rng, id, 400, 1000, round % 2 == 1);
+        below(round < 3 ? 600 : 400);
+        if (round == 3) heap.forgetFrom(Entry{400, 0, 0});
+        if (round == 4) heap.forgetFrom(Entry{900, 0, 0});  // no higher bar: nothing comes back
+        if (round == 5) heap.coolFrom(Entry{300, 0, 0});   // cooling a forgetting heap forgets
+        if (round == 5) below(300);
+        ASSERT_EQ(heap.size(), reference.size()) << round;
+        QuadHeap<Entry> copy(heap);
+        std::vector<Entry> copyReference = reference;
+        EXPECT_TRUE(copy.forgets());
+        copy.push(Entry{999, id, 0});
+        while (!copy.empty()) popBoth(copy, copyReference);
+        EXPECT_TRUE(copyReference.empty());
+        for (int i = 0; i < 150 && !heap.empty(); ++i) popBoth(heap, reference);
+    }
+    heap.drain([](const Entry&) {});
+    EXPECT_FALSE(heap.forgets());
+    heap.push(Entry{999, id, 0});
+    EXPECT_EQ(heap.size(), 1u) << "a drained heap keeps what is pushed";
+    heap.forgetFrom(Entry{100, 0, 0});
+    EXPECT_TRUE(heap.empty());
+    heap.clear();
+    EXPECT_FALSE(heap.forgets());
+}
+
 TEST(QuadHeap, GrowsAndShrinksAcrossChunks)
 {
     // Entries live in chunks of 16384: push and pop well past several chunk boundaries, up and down

@@ -421,6 +421,7 @@ public:
     }
     void release(uint32_t i) { mPiece.vertices.releaseThrough(i); }
     size_t queued() const { return mPiece.queue.size(); }
+    uint32_t forgetFromBits() const { return mPiece.forgetFromBits; }
     template <typename Ahead, typename F>
     void drainQueue(Ahead ahead, F f)
     {
@@ -497,6 +498,11 @@ public:
         size_t n = 0;
         mDec.mHeap.visit([&](const Candidate& c) { n += keeps(c); });
         return n;
+    }
+    uint32_t forgetFromBits() const
+    {
+        Candidate bar;
+        return mDec.mHeap.forgetBar(bar) ? bar.costBits() : 0;
     }
     template <typename Ahead, typename F>
     void drainQueue(Ahead ahead, F f)
@@ -589,6 +595,7 @@ MeshPiece Decimator::takePiece()
 {
     MeshPiece piece;
     DecimatorSource from(*this);
+    piece.forgetFromBits = from.forgetFromBits();
     // First what needs the vertices' state besides the vertices themselves: the queued edges (with
     // whether each is stale) and the refused pairs.
     from.drainQueue([](uint32_t, uint32_t) {}, [&](uint32_t costBits, uint32_t a, uint32_t b, bool stale) {
@@ -615,6 +622,7 @@ MeshPiece Decimator::park()
     settings.mMinVertexWeight = mMinVertexWeight;
     settings.mMaxError = mMaxError;
     settings.mMaxErrorAccepted = mMaxErrorAccepted;
+    settings.mForgetAbove = mForgetAbove;
     settings.mAttrWeight2 = mAttrWeight2;
     settings.mStop = mStop;
     settings.mWork = mWork;
@@ -699,6 +707,9 @@ void Decimator::absorbFrom(Source& from)
     // Each piece vertex's number here and its version, side by side for the queue's random reads.
     std::vector<std::pair<uint32_t, uint32_t>> renumbered(n);
     for (uint32_t v = 0; v < n; ++v) renumbered[v] = {remap[v], mMeta[remap[v]].version};
+    // The other side's queue lacks its edges above its bar: this one drops its own from there too,
+    // and lists them all again when it needs them.
+    if (const uint32_t bits = from.forgetFromBits()) mHeap.forgetFrom(Candidate::make(bits, 0, 0, 0));
     const bool pushEach = mHeap.size() > from.queued();
     const auto renumberedAhead = [&](uint32_t ia, uint32_t ib) {
         __builtin_prefetch(&renumbered[ia]);
@@ -1000,7 +1011,12 @@ size_t Decimator::decimateTo(size_t targetFaces)
     // Edges refused earlier (link condition, fold-overs) get another chance once the faces around an
     // end have changed; the others stay refused without a queue round trip.
     retryRefused([&](const Refused& r) { return ringsChanged(r); });
-    while (mFaceCount > targetFaces && !mHeap.empty()) {
+    while (mFaceCount > targetFaces) {
+        if (mHeap.empty()) {
+            if (!mHeap.forgets()) break;
+            requeueForgotten();
+            continue;
+        }
         if (mStop && (++mPolls & 4095) == 0 && mStop()) throw Cancelled("cancelled");
         const Candidate c = mHeap.pop();
         ++mWork.pops;
@@ -1057,7 +1073,11 @@ size_t Decimator::decimateTo(size_t targetFaces)
     // Non-negative float costs order like their bits: the bar is the next exponent, mantissa zero.
     if (mHeap.size() > kCoolAboveEntries) {
         const uint32_t exponent = mHeap.top().costBits() >> 23;
-        if (exponent + 1 < 255) mHeap.coolFrom(Candidate::make((exponent + 1) << 23, 0, 0, 0));
+        const Candidate bar = Candidate::make((exponent + 1) << 23, 0, 0, 0);
+        if (exponent + 1 < 255) {
+            if (mHeap.size() > mForgetAbove) mHeap.forgetFrom(bar);
+            else mHeap.coolFrom(bar);
+        }
     }
     return collapses;
 }
@@ -1065,6 +1085,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
 size_t Decimator::decimateRegionByRegion(size_t targetFaces, size_t regions)
 {
     if (regions <= 1 || mFaceCount <= targetFaces || mVertexCount == 0) return decimateTo(targetFaces);
+    if (mHeap.forgets()) requeueForgotten();  // the regions share out every entry
     std::array<double, 3> lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
     for (uint32_t v = 0; v < mMeta.size(); ++v)
         if (mMeta[v].alive)
@@ -1361,16 +1382,28 @@ void Decimator::retryFolds()
     retryRefused([](const Refused& r) { return r.folds != 0; });
 }
 
-void Decimator::requeueAll()
+void Decimator::requeueForgotten()
 {
+    // Every edge again at its cost now, but the refused pairs: they wait for their faces to change.
+    // What the dropped entries would have given: a dead one nothing, a stale one its edge at today's
+    // cost, and a current one the same entry.
+    std::vector<uint64_t> refused(mRefused.size());
+    for (size_t i = 0; i < mRefused.size(); ++i) refused[i] = uint64_t(mRefused[i].a) << 32 | mRefused[i].b;
+    std::sort(refused.begin(), refused.end());
     mHeap.clear();
-    mRefused.clear();
     for (uint32_t v = 0; v < mMeta.size(); ++v) {
         if (!mMeta[v].alive || !mMeta[v].final) continue;
         neighbours(v, mScratchB);
         for (uint32_t n : mScratchB)
-            if (n > v && mMeta[n].final) push(v, n);
+            if (n > v && mMeta[n].final && !std::binary_search(refused.begin(), refused.end(), uint64_t(v) << 32 | n))
+                push(v, n);
     }
+}
+
+void Decimator::requeueAll()
+{
+    mRefused.clear();
+    requeueForgotten();
 }
 
 // verticesRead(v) / facesRead(i): vertex v / face i, and every one before it, has been read for the last time.

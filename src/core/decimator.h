@@ -46,6 +46,7 @@ struct MeshPiece {
     ChunkedVector<std::array<uint32_t, 3>> faces;
     std::vector<std::pair<EdgeKey, uint32_t>> open;  // sorted by key
     ChunkedVector<Queued> queue;                      // in the queue's array order
+    uint32_t forgetFromBits = 0;  // non-zero: edges costing this (float bits) or more are not in `queue`
     // Refused pairs: their faces are all there (both ends are final), so a merge changes nothing
     // around them and they stay refused until their faces change, remembering why.
     struct Refused {
@@ -173,6 +174,9 @@ public:
     // the plane weights (each face's area, at least 0.25 voxel faces, and each vertex at least 2); under a bound, also the distance
     // of both ends from the faces the collapse leaves (fanDistance). Infinity (default): no bound.
     void setMaxError(double error) { mMaxError = error; }
+    // Queues of more entries than this keep no entry above the cost a pass is likely to reach; the
+    // edges are listed again when needed. The same collapses either way (tests lower it to check so).
+    void setForgetAboveEntries(size_t entries) { mForgetAbove = entries; }
     // Weight W of an attribute's error against the geometric error (attribute units per world unit):
     // with W > 0 each face also adds an attribute quadric (attribute_quadric.h) from the values of
     // BlockMesh::attribute at its corners, and a collapse costs its geometric error plus W^2 times its
@@ -358,6 +362,13 @@ private:
     void unseal();
     QuadHeap<Candidate> mHeap;
     static constexpr size_t kCoolAboveEntries = 4096;  // smaller queues stay whole
+    // Queues of more than mForgetAbove entries drop their cold entries instead (QuadHeap::forgetFrom)
+    // and list every edge again when the heap runs out below the bar (requeueForgotten). Listing them
+    // costs a cost evaluation an edge where bringing cold entries back costs none: a slab's queue, which
+    // runs out below its bar at most passes, keeps them; near the top of the merge tree the bar is
+    // rarely reached (no time at 448^3, docs/perf.md).
+    size_t mForgetAbove = size_t(1) << 20;
+    void requeueForgotten();
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
     // the sum of both ends' ring counters at refusal (its low 31 bits: the record stays 12 bytes, and
     // there can be hundreds of thousands at a merge), so a collapse that cannot succeed (a closed

@@ -102,6 +102,7 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         w.put(uint8_t(c.stale));
         m.queue.releaseThrough(i);
     }
+    w.put(m.forgetFromBits);
     w.put(uint64_t(m.refused.size()));
     for (const auto& r : m.refused) {
         w.put(r.a);
@@ -172,6 +173,7 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
         c.stale = r.get<uint8_t>() != 0;
         if (c.a >= vertices || c.b >= vertices) throw std::runtime_error("merge tree piece: a queued edge is missing");
     }
+    m.forgetFromBits = r.get<uint32_t>();
     m.refused.resize(r.count(9));
     for (auto& x : m.refused) {
         x.a = r.get<uint32_t>();

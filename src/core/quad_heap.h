@@ -38,7 +38,8 @@ public:
     QuadHeap(QuadHeap&&) noexcept = default;
     QuadHeap& operator=(QuadHeap&&) noexcept = default;
     // A deep copy: a LOD chain's coarser level starts from a copy of its slab's decimator.
-    QuadHeap(const QuadHeap& o) : mEnd(o.mEnd), mUnordered(o.mUnordered), mCold(o.mCold), mColdFrom(o.mColdFrom), mHasCold(o.mHasCold)
+    QuadHeap(const QuadHeap& o)
+        : mEnd(o.mEnd), mUnordered(o.mUnordered), mCold(o.mCold), mColdFrom(o.mColdFrom), mHasCold(o.mHasCold), mForget(o.mForget)
     {
         for (size_t c = 0; c < o.mChunks.size(); ++c) {
             mChunks.push_back(newChunk());
@@ -69,6 +70,7 @@ public:
         mUnordered = false;
         mCold.clear();
         mHasCold = false;
+        mForget = false;
     }
 
     // Entry i of the heap proper (i < size() while nothing is cold), in no particular order unless the
@@ -77,7 +79,7 @@ public:
 
     // Calls f on every entry (the ordered part in array order, then the cold ones in the order they
     // went cold), freeing the storage as it goes, or handing each chunk to heap `into` to fill again as
-    // it grows (SpareChunks); the heap is left empty.
+    // it grows (SpareChunks); the heap is left empty, forgetting nothing (read forgetBar first).
     template <typename F>
     void drain(F f, QuadHeap* into = nullptr)
     {
@@ -115,7 +117,7 @@ public:
         size_t kept = kPad;
         for (size_t p = kPad; p < mEnd; ++p) {
             if (slot(p) < from) slot(kept++) = slot(p);
-            else mCold.emplace_back() = slot(p);
+            else if (!mForget) mCold.emplace_back() = slot(p);
         }
         // Nothing moved (the bar was above every entry): the heap is as ordered as before.
         if (kept != mEnd) mUnordered = true;
@@ -129,10 +131,27 @@ public:
         return mHasCold;
     }
 
+    // As coolFrom, but the entries not below `from` are dropped, those pushed or appended later too,
+    // until clear(): the owner, which can list every entry again, does so when the heap runs empty
+    // (forgets()). Near the top of the merge tree most of a queue lies above the bar and is never
+    // popped, yet it was a quarter of the peak memory (docs/perf.md).
+    void forgetFrom(const T& from)
+    {
+        mForget = true;
+        coolFrom(from);
+        mCold = {};
+    }
+    bool forgets() const { return mForget; }
+    bool forgetBar(T& bar) const
+    {
+        if (mForget) bar = mColdFrom;
+        return mForget;
+    }
+
     void append(const T& x)
     {
         if (goesCold(x)) {
-            mCold.emplace_back() = x;
+            if (!mForget) mCold.emplace_back() = x;
             return;
         }
         pushBack(x);
@@ -142,7 +161,7 @@ public:
     void push(const T& x)
     {
         if (goesCold(x)) {
-            mCold.emplace_back() = x;
+            if (!mForget) mCold.emplace_back() = x;
             return;
         }
         order();
@@ -200,7 +219,7 @@ private:
     void ready()
     {
         order();
-        if (!mHasCold || (hot() > 0 && at(0) < mColdFrom)) return;
+        if (!mHasCold || mForget || (hot() > 0 && at(0) < mColdFrom)) return;
         for (size_t i = 0; i < mCold.size(); ++i) {
             pushBack(mCold[i]);
             mCold.releaseThrough(i);
@@ -266,6 +285,7 @@ private:
     ChunkedVector<T> mCold;  // entries not below mColdFrom, while mHasCold (coolFrom)
     T mColdFrom{};
     bool mHasCold = false;
+    bool mForget = false;  // with mHasCold: what goes cold is dropped (forgetFrom)
 };
 
 } // namespace vdb_isosimp
