@@ -121,7 +121,7 @@ TEST(QuadHeap, AForgettingHeapHoldsOnlyWhatLiesBelowItsBar)
     below(600);
     EXPECT_TRUE(heap.forgets());
     Entry bar;
-    ASSERT_TRUE(heap.forgetBar(bar));
+    ASSERT_TRUE(heap.coldBar(bar));
     EXPECT_EQ(bar.key, 600u);
     ASSERT_EQ(heap.size(), reference.size());
     for (int round = 0; round < 6; ++round) {

@@ -502,7 +502,7 @@ public:
     uint32_t forgetFromBits() const
     {
         Candidate bar;
-        return mDec.mHeap.forgetBar(bar) ? bar.costBits() : 0;
+        return mDec.mHeap.forgets() && mDec.mHeap.coldBar(bar) ? bar.costBits() : 0;
     }
     template <typename Ahead, typename F>
     void drainQueue(Ahead ahead, F f)
@@ -1073,8 +1073,8 @@ size_t Decimator::decimateTo(size_t targetFaces)
     // Non-negative float costs order like their bits: the bar is the next exponent, mantissa zero.
     if (mHeap.size() > kCoolAboveEntries) {
         const uint32_t exponent = mHeap.top().costBits() >> 23;
-        const Candidate bar = Candidate::make((exponent + 1) << 23, 0, 0, 0);
         if (exponent + 1 < 255) {
+            const Candidate bar = Candidate::make((exponent + 1) << 23, 0, 0, 0);
             if (mHeap.size() > mForgetAbove) mHeap.forgetFrom(bar);
             else mHeap.coolFrom(bar);
         }

@@ -79,7 +79,7 @@ public:
 
     // Calls f on every entry (the ordered part in array order, then the cold ones in the order they
     // went cold), freeing the storage as it goes, or handing each chunk to heap `into` to fill again as
-    // it grows (SpareChunks); the heap is left empty, forgetting nothing (read forgetBar first).
+    // it grows (SpareChunks); the heap is left empty, forgetting nothing (read forgets() and coldBar first).
     template <typename F>
     void drain(F f, QuadHeap* into = nullptr)
     {
@@ -117,7 +117,7 @@ public:
         size_t kept = kPad;
         for (size_t p = kPad; p < mEnd; ++p) {
             if (slot(p) < from) slot(kept++) = slot(p);
-            else if (!mForget) mCold.emplace_back() = slot(p);
+            else keepCold(slot(p));
         }
         // Nothing moved (the bar was above every entry): the heap is as ordered as before.
         if (kept != mEnd) mUnordered = true;
@@ -142,16 +142,11 @@ public:
         mCold = {};
     }
     bool forgets() const { return mForget; }
-    bool forgetBar(T& bar) const
-    {
-        if (mForget) bar = mColdFrom;
-        return mForget;
-    }
 
     void append(const T& x)
     {
         if (goesCold(x)) {
-            if (!mForget) mCold.emplace_back() = x;
+            keepCold(x);
             return;
         }
         pushBack(x);
@@ -161,7 +156,7 @@ public:
     void push(const T& x)
     {
         if (goesCold(x)) {
-            if (!mForget) mCold.emplace_back() = x;
+            keepCold(x);
             return;
         }
         order();
@@ -215,6 +210,11 @@ public:
 private:
     size_t hot() const { return mEnd - kPad; }
     bool goesCold(const T& x) const { return mHasCold && !(x < mColdFrom); }
+    // An entry not below the bar waits outside the heap, or is dropped if the heap forgets.
+    void keepCold(const T& x)
+    {
+        if (!mForget) mCold.emplace_back() = x;
+    }
     // Ordered, with the smallest entry on top: the cold entries come back when none below them is left.
     void ready()
     {
