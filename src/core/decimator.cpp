@@ -210,8 +210,14 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
         out[i].cost = out[i].geoCost + (mAttrWeight2 > 0 ? mAttrWeight2 * attr.error(out[i].p) : 0.0);
         out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
     }
-    // Cheapest first; ties keep the order above.
-    std::stable_sort(out, out + n, [](const Placement& x, const Placement& y) { return x.cost < y.cost; });
+    // Cheapest first; ties keep the order above. Insertion sort: at most five entries, and
+    // std::stable_sort allocates a buffer on every call (2 % of a run's instructions).
+    for (size_t i = 1; i < n; ++i) {
+        const Placement x = out[i];
+        size_t j = i;
+        for (; j > 0 && x.cost < out[j - 1].cost; --j) out[j] = out[j - 1];
+        out[j] = x;
+    }
     return n;
 }
 
@@ -807,33 +813,33 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
 // rings in mScratchA, each neighbour stamped with the end(s) it belongs to.
 bool Decimator::edgeMayCollapse(uint32_t a, uint32_t b, EdgeLink& e)
 {
-    // The two faces on edge ab and their opposite corners; the valence of a on the way.
+    // One walk around a finds the two faces on edge ab and their opposite corners, counts a's valence
+    // and stamps a's ring. Link condition: the only common neighbours of a and b are the two opposite
+    // corners; the walk around b checks it with the stamps. mScratchA gets the union of both rings
+    // (what needs requeueing).
     uint32_t* shared = e.shared;
     uint32_t* opposite = e.opposite;
     int ns = 0;
     size_t& valenceA = e.valenceA;
     size_t& valenceB = e.valenceB;
+    const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
+    e.inA = inA;
+    e.inB = inB;
+    std::vector<uint32_t>& ring = mScratchA;
+    ring.clear();
     for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceA) {
         const auto& fv = mFaces[c / 3].v;
+        for (uint32_t x : fv)
+            if (x != a && mMeta[x].mark != inA) {
+                mMeta[x].mark = inA;
+                ring.push_back(x);
+            }
         if (fv[0] != b && fv[1] != b && fv[2] != b) continue;
         if (ns == 2) return false;  // non-manifold edge
         shared[ns] = c / 3;
         opposite[ns++] = fv[0] != a && fv[0] != b ? fv[0] : (fv[1] != a && fv[1] != b ? fv[1] : fv[2]);
     }
     if (ns != 2 || opposite[0] == opposite[1]) return false;
-    // Link condition: the only common neighbours of a and b are the two opposite corners. The rings
-    // are walked once with stamps: mScratchA gets the union of both rings (what needs requeueing).
-    const uint32_t inA = nextStamp(), inBoth = nextStamp(), inB = nextStamp();
-    e.inA = inA;
-    e.inB = inB;
-    std::vector<uint32_t>& ring = mScratchA;
-    ring.clear();
-    for (uint32_t c = mMeta[a].head; c != kNone; c = mFaces[c / 3].next[c % 3])
-        for (uint32_t x : mFaces[c / 3].v)
-            if (x != a && mMeta[x].mark != inA) {
-                mMeta[x].mark = inA;
-                ring.push_back(x);
-            }
     size_t common = 0;
     for (uint32_t c = mMeta[b].head; c != kNone; c = mFaces[c / 3].next[c % 3], ++valenceB)
         for (uint32_t x : mFaces[c / 3].v) {

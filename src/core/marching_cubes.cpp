@@ -165,21 +165,27 @@ double Affine::determinant() const
            m[2] * (m[4] * m[9] - m[5] * m[8]);
 }
 
-int cellCase(const BlockSamples& s, const Classifier& c, int x, int y, int z)
+std::array<uint8_t, 512> blockCases(const BlockSamples& s, const Classifier& c)
 {
-    int mask = 0;
-    for (int k = 0; k < 8; ++k)
-        if (c.inside(s.at(x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1)))) mask |= 1 << k;
-    return mask;
+    constexpr int N = BlockSamples::N;
+    std::array<uint8_t, N * N * N> in;
+    for (size_t i = 0; i < in.size(); ++i) in[i] = c.inside(s.values[i]);
+    std::array<uint8_t, 512> cases;
+    for (int z = 0; z < 8; ++z)
+        for (int y = 0; y < 8; ++y)
+            for (int x = 0; x < 8; ++x) {
+                const uint8_t* o = &in[(z * N + y) * N + x];
+                cases[(z * 8 + y) * 8 + x] = uint8_t(o[0] | o[1] << 1 | o[N] << 2 | o[N + 1] << 3 | o[N * N] << 4 |
+                                                     o[N * N + 1] << 5 | o[N * N + N] << 6 | o[N * N + N + 1] << 7);
+            }
+    return cases;
 }
 
 uint64_t countBlockTriangles(const BlockSamples& s, const Classifier& c)
 {
     const auto& table = mcTable();
     uint64_t n = 0;
-    for (int z = 0; z < 8; ++z)
-        for (int y = 0; y < 8; ++y)
-            for (int x = 0; x < 8; ++x) n += table[cellCase(s, c, x, y, z)].triangleCount;
+    for (uint8_t mask : blockCases(s, c)) n += table[mask].triangleCount;
     return n;
 }
 
@@ -215,10 +221,12 @@ void extractBlock(const BlockSamples& s, const Classifier& c, const Affine& toWo
         return uint32_t(id);
     };
 
+    const std::array<uint8_t, 512> cases = blockCases(s, c);
     for (int z = 0; z < 8; ++z)
         for (int y = 0; y < 8; ++y)
             for (int x = 0; x < 8; ++x) {
-                const McCase& mc = table[cellCase(s, c, x, y, z)];
+                const McCase& mc = table[cases[(z * 8 + y) * 8 + x]];
+                if (mc.triangleCount == 0) continue;
                 for (int t = 0; t < mc.triangleCount; ++t) {
                     std::array<uint32_t, 3> tri{vertexOf(x, y, z, mc.triangles[t][0]),
                                                 vertexOf(x, y, z, mc.triangles[t][1]),

@@ -70,8 +70,10 @@ struct Affine {
     double determinant() const;
 };
 
-// Case index of cell (x,y,z) of the block.
-int cellCase(const BlockSamples& s, const Classifier& c, int x, int y, int z);
+// Case index of every cell of the block, cell (x,y,z) at (z * 8 + y) * 8 + x: bit k set when corner
+// (k & 1, k >> 1 & 1, k >> 2 & 1) is inside. Each of the 9^3 samples is classified once (up to eight
+// cells share it).
+std::array<uint8_t, 512> blockCases(const BlockSamples& s, const Classifier& c);
 
 // Number of triangles the block yields (the exact counting pass for --faces).
 uint64_t countBlockTriangles(const BlockSamples& s, const Classifier& c);

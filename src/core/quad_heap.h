@@ -262,10 +262,17 @@ private:
             // Their children's groups start loading while these four are compared: in a queue of
             // millions (a merge near the tree's root, a final pass) every level is a cache miss, and
             // the next level's line no longer waits for this level's choice (docs/perf.md).
-            for (size_t k = 0; k < count; ++k) {
-                const size_t grandchildren = 4 * (first + k) + 1;
-                if (grandchildren >= n) break;
-                __builtin_prefetch(&at(grandchildren));
+            // Their groups are the 16 entries from logical 4 * first + 1, four lines in a row: one
+            // lookup for all four unless they straddle two chunks.
+            const size_t grandchildren = 4 * first + 1;
+            if (grandchildren < n) {
+                const size_t p = grandchildren + kPad;
+                const T* line = &slot(p);
+                if ((p & (kChunk - 1)) <= kChunk - 16) {
+                    for (int k = 0; k < 16; k += 4) __builtin_prefetch(line + k);
+                } else {
+                    for (size_t k = 0; k < 16 && grandchildren + k < n; k += 4) __builtin_prefetch(&slot(p + k));
+                }
             }
             size_t best = 0;
             for (size_t k = 1; k < count; ++k)
