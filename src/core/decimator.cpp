@@ -200,16 +200,13 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
     out[n++] = {{0, 0, 0}, 0, 0};
     out[n++] = {d, 0, 0};
     out[n++] = {{d[0] / 2, d[1] / 2, d[2] / 2}, 0, 0};
-    AttributeQuadric attr;
+    for (size_t i = 0; i < n; ++i) out[i].cost = out[i].geoCost = std::max(0.0, q.error(out[i].p));
     if (mAttrWeight2 > 0) {
-        attr = mAttrQ[a];
+        AttributeQuadric attr = mAttrQ[a];
         attr += mAttrQ[b].shifted(sub(va.p, vb.p));
+        for (size_t i = 0; i < n; ++i) out[i].cost += mAttrWeight2 * attr.error(out[i].p);
     }
-    for (size_t i = 0; i < n; ++i) {
-        out[i].geoCost = std::max(0.0, q.error(out[i].p));
-        out[i].cost = out[i].geoCost + (mAttrWeight2 > 0 ? mAttrWeight2 * attr.error(out[i].p) : 0.0);
-        out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
-    }
+    for (size_t i = 0; i < n; ++i) out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
     // Cheapest first; ties keep the order above. Insertion sort: at most five entries, and
     // std::stable_sort allocates a buffer on every call (2 % of a run's instructions).
     for (size_t i = 1; i < n; ++i) {

@@ -219,7 +219,11 @@ private:
     void ready()
     {
         order();
-        if (!mHasCold || mForget || (hot() > 0 && at(0) < mColdFrom)) return;
+        if (mHasCold && !mForget && !(hot() > 0 && at(0) < mColdFrom)) warmUp();
+    }
+    // Out of line: ready() runs twice a pop, this once in thousands.
+    __attribute__((noinline)) void warmUp()
+    {
         for (size_t i = 0; i < mCold.size(); ++i) {
             pushBack(mCold[i]);
             mCold.releaseThrough(i);
@@ -242,7 +246,10 @@ private:
 
     void order()
     {
-        if (!mUnordered) return;
+        if (mUnordered) heapify();
+    }
+    __attribute__((noinline)) void heapify()
+    {
         for (size_t i = hot() / 4 + 1; i-- > 0;)
             if (i < hot()) siftDown(i);
         mUnordered = false;
