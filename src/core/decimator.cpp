@@ -1030,6 +1030,14 @@ size_t Decimator::decimateTo(size_t targetFaces)
             const Candidate& next = mHeap.top();
             __builtin_prefetch(&mMeta[next.a()]);
             __builtin_prefetch(&mMeta[next.b]);
+            // And their positions and quadrics (up to three lines each), which a collapse attempt or a
+            // stale entry's new cost reads first.
+            for (const uint32_t v : {next.a(), next.b}) {
+                const char* g = reinterpret_cast<const char*>(&mGeom[v]);
+                __builtin_prefetch(g);
+                __builtin_prefetch(g + 64);
+                __builtin_prefetch(g + sizeof(VertexGeom) - 1);
+            }
         }
         if (!current(c)) {
             // An end changed since the entry was queued: requeue at today's cost (it comes straight
