@@ -150,6 +150,15 @@ uint32_t Decimator::nextStamp()
     return ++mStamp;
 }
 
+void Decimator::prefetchGeom(uint32_t v) const
+{
+    // A record spans up to three cache lines.
+    const char* g = reinterpret_cast<const char*>(&mGeom[v]);
+    __builtin_prefetch(g);
+    __builtin_prefetch(g + 64);
+    __builtin_prefetch(g + sizeof(VertexGeom) - 1);
+}
+
 void Decimator::neighbours(uint32_t v, std::vector<uint32_t>& out)
 {
     // Each neighbour once, in ring-walk order; a stamp per vertex replaces sorting.
@@ -277,6 +286,8 @@ void Decimator::finalize(uint32_t v)
     for (uint32_t c = vx.head; c != kNone; c = mFaces[c / 3].next[c % 3])
         if (!anyOpen(mFaces[c / 3])) --mUncontractibleFaces;  // v was its last open corner
     neighbours(v, mScratchA);
+    for (uint32_t n : mScratchA)
+        if (mMeta[n].final) prefetchGeom(n);
     for (uint32_t n : mScratchA)
         if (mMeta[n].final) push(std::min(v, n), std::max(v, n));
 }
@@ -903,8 +914,11 @@ void Decimator::mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const V3& t
     // Queue the survivor's new edges (those the dead end brought). Its old edges keep their entries:
     // their costs are now lower bounds (quadrics only grow), so they are re-evaluated when popped.
     const uint32_t brought = gone == a ? e.inA : e.inB;
+    const auto isNew = [&](uint32_t n) { return mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final; };
     for (uint32_t n : ring)
-        if (mMeta[n].mark == brought && n != keep && n != gone && mMeta[n].final) push(std::min(keep, n), std::max(keep, n));
+        if (isNew(n)) prefetchGeom(n);
+    for (uint32_t n : ring)
+        if (isNew(n)) push(std::min(keep, n), std::max(keep, n));
 }
 
 double Decimator::displacement(uint32_t a, uint32_t b, double cost) const
@@ -1030,14 +1044,10 @@ size_t Decimator::decimateTo(size_t targetFaces)
             const Candidate& next = mHeap.top();
             __builtin_prefetch(&mMeta[next.a()]);
             __builtin_prefetch(&mMeta[next.b]);
-            // And their positions and quadrics (up to three lines each), which a collapse attempt or a
-            // stale entry's new cost reads first.
-            for (const uint32_t v : {next.a(), next.b}) {
-                const char* g = reinterpret_cast<const char*>(&mGeom[v]);
-                __builtin_prefetch(g);
-                __builtin_prefetch(g + 64);
-                __builtin_prefetch(g + sizeof(VertexGeom) - 1);
-            }
+            // And their positions and quadrics, which a collapse attempt or a stale entry's new cost
+            // reads first.
+            prefetchGeom(next.a());
+            prefetchGeom(next.b);
         }
         if (!current(c)) {
             // An end changed since the entry was queued: requeue at today's cost (it comes straight

@@ -284,6 +284,8 @@ private:
     void finalize(uint32_t v);
     uint32_t nextStamp();
     void neighbours(uint32_t v, std::vector<uint32_t>& out);
+    // Starts loading vertex v's position and quadric (a cost evaluation is about to read them).
+    void prefetchGeom(uint32_t v) const;
     // A candidate position of a collapse's survivor and the edge quadric's error there.
     struct Placement {
         std::array<double, 3> p;
