@@ -95,3 +95,25 @@ TEST(MarchingCubes, CountMatchesExtraction)
     EXPECT_EQ(countBlockTriangles(s, Classifier{}), m.triangles.size());
     EXPECT_GT(m.triangles.size(), 500u);
 }
+
+// blockCases classifies each sample once and gathers a cell's eight corners from those bits; here each
+// cell's case is rebuilt from its own corners (bit k: corner (k & 1, k >> 1 & 1, k >> 2 & 1)), for both
+// kinds of grid and with samples exactly at the iso-value.
+TEST(MarchingCubes, BlockCasesGatherEachCellsCorners)
+{
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> level(-2, 2);
+    BlockSamples s;
+    for (double& v : s.values) v = 0.25 * level(rng);
+    for (const Classifier c : {Classifier{0.0, true}, Classifier{0.25, false}}) {
+        const std::array<uint8_t, 512> cases = blockCases(s, c);
+        for (int z = 0; z < 8; ++z)
+            for (int y = 0; y < 8; ++y)
+                for (int x = 0; x < 8; ++x) {
+                    int mask = 0;
+                    for (int k = 0; k < 8; ++k)
+                        if (c.inside(s.at(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2 & 1)))) mask |= 1 << k;
+                    ASSERT_EQ(cases[size_t((z * 8 + y) * 8 + x)], mask) << "cell " << x << " " << y << " " << z;
+                }
+    }
+}
