@@ -216,8 +216,8 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
         for (size_t i = 0; i < n; ++i) out[i].cost += mAttrWeight2 * attr.error(out[i].p);
     }
     for (size_t i = 0; i < n; ++i) out[i].p = {va.p[0] + out[i].p[0], va.p[1] + out[i].p[1], va.p[2] + out[i].p[2]};
-    // Cheapest first; ties keep the order above. Insertion sort: at most five entries, and
-    // std::stable_sort allocates a buffer on every call (2 % of a run's instructions).
+    // Cheapest first; ties keep the order above. Insertion sort: at most five entries, where
+    // std::stable_sort would allocate a buffer on every call.
     for (size_t i = 1; i < n; ++i) {
         const Placement x = out[i];
         size_t j = i;

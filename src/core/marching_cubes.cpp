@@ -226,7 +226,6 @@ void extractBlock(const BlockSamples& s, const Classifier& c, const Affine& toWo
         for (int y = 0; y < 8; ++y)
             for (int x = 0; x < 8; ++x) {
                 const McCase& mc = table[cases[(z * 8 + y) * 8 + x]];
-                if (mc.triangleCount == 0) continue;
                 for (int t = 0; t < mc.triangleCount; ++t) {
                     std::array<uint32_t, 3> tri{vertexOf(x, y, z, mc.triangles[t][0]),
                                                 vertexOf(x, y, z, mc.triangles[t][1]),
