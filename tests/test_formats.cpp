@@ -12,6 +12,7 @@
 #include "test_files.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 #include <tiny_gltf.h>
 
 #include <cmath>
@@ -178,6 +179,36 @@ TEST(Formats, EveryFormatReadsBackTheSameMesh)
     const std::string stl = slurp(d + "/m.stl");
     EXPECT_EQ(stl.rfind("vdb_isosimp grid density sphere; units", 0), 0u);
     EXPECT_EQ(stl.size(), 84 + 50 * res.mesh.triangles.size());
+}
+
+TEST(Formats, ALargeMeshReadsBackTheSameOnAnyThreadCount)
+{
+    // The writers format spans of consecutive items on all threads and write them in order; a mesh of
+    // more faces than one round of spans holds (524,288) checks the rounds join up, against OpenMesh's
+    // readers, and that one thread writes the same bytes.
+    vi::Mesh m;
+    const uint32_t n = 520;
+    for (uint32_t j = 0; j < n; ++j)
+        for (uint32_t i = 0; i < n; ++i)
+            m.points.push_back({0.25f * float(i), 0.5f * float(j), std::sin(0.1f * float(i)) * std::cos(0.07f * float(j))});
+    for (uint32_t j = 0; j + 1 < n; ++j)
+        for (uint32_t i = 0; i + 1 < n; ++i) {
+            const uint32_t a = j * n + i;
+            m.triangles.push_back({a, a + 1, a + n + 1});
+            m.triangles.push_back({a, a + n + 1, a + n});
+        }
+    ASSERT_GT(m.triangles.size(), 524288u);
+    const std::string d = tempDir("large");
+    for (const char* name : {"bin.ply", "ascii.ply", "m.obj", "m.stl"}) {
+        vi::WriteOptions o;
+        o.ascii = std::string(name) == "ascii.ply";
+        const std::string path = d + "/" + name;
+        vi::writeMesh(m, path, o);
+        expectSameMesh(m, vi::eval::readMesh(path), name);
+        tbb::task_arena one(1);
+        one.execute([&] { vi::writeMesh(m, d + "/one_" + name, o); });
+        EXPECT_TRUE(slurp(path) == slurp(d + "/one_" + name)) << name << ": one thread writes other bytes";
+    }
 }
 
 TEST(Formats, NormalsAreAreaWeightedAndOutward)

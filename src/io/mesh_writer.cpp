@@ -1,6 +1,7 @@
 #include "vdb_isosimp/mesh_writer.h"
 #include "vdb_isosimp/temporary_file.h"
 
+#include <tbb/parallel_for.h>
 #include <tiny_gltf.h>
 
 #include "vdb_isosimp/errors.h"
@@ -67,7 +68,7 @@ public:
     void bytes(const void* p, size_t n)
     {
         const auto* c = static_cast<const unsigned char*>(p);
-        if (n >= kChunk) {
+        if (n >= kDirect) {  // a copy into the buffer would cost more than the extra write call
             flush();
             std::fwrite(c, 1, n, mF);
             return;
@@ -76,6 +77,24 @@ public:
         if (mBuf.size() >= kChunk) flush();
     }
     void text(const std::string& s) { bytes(s.data(), s.size()); }
+    // Items [0, count), each appended to a byte string by append(i, s): made on all threads in spans
+    // of consecutive items, written in order, so the bytes are a serial loop's. The whole mesh is
+    // never formatted at once: at most kSpansAtOnce spans are held.
+    template <typename Append> void items(size_t count, const Append& append)
+    {
+        constexpr size_t kSpan = 16384, kSpansAtOnce = 32;
+        std::vector<std::string> spans;
+        for (size_t first = 0; first < count; first += kSpan * kSpansAtOnce) {
+            spans.resize(std::min(kSpansAtOnce, (count - first + kSpan - 1) / kSpan));
+            tbb::parallel_for(size_t(0), spans.size(), [&](size_t k) {
+                std::string& out = spans[k];
+                out.clear();
+                const size_t begin = first + k * kSpan, end = std::min(count, begin + kSpan);
+                for (size_t i = begin; i < end; ++i) append(i, out);
+            });
+            for (const std::string& span : spans) text(span);
+        }
+    }
     template <typename T> void pod(const T& v) { bytes(&v, sizeof v); }
     void zeros(size_t n)
     {
@@ -89,7 +108,7 @@ public:
     }
 
 private:
-    static constexpr size_t kChunk = 1 << 20;
+    static constexpr size_t kChunk = 1 << 20, kDirect = 1 << 16;
     std::FILE* mF;
     std::vector<unsigned char> mBuf;
 };
@@ -160,9 +179,7 @@ void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
     out.text(h);
 
     if (ascii) {
-        std::string line;
-        for (size_t i = 0; i < mesh.points.size(); ++i) {
-            line.clear();
+        out.items(mesh.points.size(), [&](size_t i, std::string& line) {
             const auto& p = mesh.points[i];
             for (int k = 0; k < 3; ++k) {
                 if (k) line += ' ';
@@ -179,30 +196,33 @@ void writePly(const Mesh& mesh, Out& out, const WriteOptions& o, bool ascii)
                     appendFloat(line, a.values[i * a.components + k]);
                 }
             line += '\n';
-            out.text(line);
-        }
-        for (const auto& t : mesh.triangles)
-            out.text("3 " + std::to_string(t[0]) + ' ' + std::to_string(t[1]) + ' ' + std::to_string(t[2]) + '\n');
+        });
+        out.items(mesh.triangles.size(), [&](size_t i, std::string& line) {
+            const auto& t = mesh.triangles[i];
+            line += "3 " + std::to_string(t[0]) + ' ' + std::to_string(t[1]) + ' ' + std::to_string(t[2]) + '\n';
+        });
         return;
     }
 
     if (!hostIsLittleEndian()) throw OutputError("big-endian hosts are not supported by the binary writers");
     if (o.normals || !mesh.attributes.empty()) {
-        for (size_t i = 0; i < mesh.points.size(); ++i) {
-            out.pod(mesh.points[i]);
-            if (o.normals) out.pod(normals[i]);
-            for (const VertexAttribute& a : mesh.attributes) out.bytes(&a.values[i * a.components], sizeof(float) * a.components);
-        }
+        out.items(mesh.points.size(), [&](size_t i, std::string& rec) {
+            rec.append(reinterpret_cast<const char*>(mesh.points[i].data()), 12);
+            if (o.normals) rec.append(reinterpret_cast<const char*>(normals[i].data()), 12);
+            for (const VertexAttribute& a : mesh.attributes)
+                rec.append(reinterpret_cast<const char*>(&a.values[i * a.components]), sizeof(float) * a.components);
+        });
     } else {
         out.bytes(mesh.points.data(), sizeof(float) * 3 * mesh.points.size());
     }
-    for (const auto& t : mesh.triangles) {
-        unsigned char rec[13];
+    out.items(mesh.triangles.size(), [&](size_t i, std::string& s) {
+        const auto& t = mesh.triangles[i];
+        char rec[13];
         rec[0] = 3;
         const int32_t idx[3] = {int32_t(t[0]), int32_t(t[1]), int32_t(t[2])};
         std::memcpy(rec + 1, idx, 12);
-        out.bytes(rec, 13);
-    }
+        s.append(rec, 13);
+    });
 }
 
 void writeObj(const Mesh& mesh, Out& out, const WriteOptions& o)
@@ -216,20 +236,21 @@ void writeObj(const Mesh& mesh, Out& out, const WriteOptions& o)
          " triangles\n";
     h += "o " + oneLine(o.objectName.empty() ? std::string("vdb_isosimp") : o.objectName) + "\n";
     out.text(h);
-    std::string line;
-    auto vec = [&](const char* tag, const std::array<float, 3>& v) {
-        line = tag;
-        for (int k = 0; k < 3; ++k) {
-            line += ' ';
-            appendFloat(line, v[size_t(k)]);
-        }
-        line += '\n';
-        out.text(line);
+    const auto vectors = [&](const char* tag, const std::vector<std::array<float, 3>>& v) {
+        out.items(v.size(), [&](size_t i, std::string& line) {
+            line += tag;
+            for (int k = 0; k < 3; ++k) {
+                line += ' ';
+                appendFloat(line, v[i][size_t(k)]);
+            }
+            line += '\n';
+        });
     };
-    for (const auto& p : mesh.points) vec("v", p);
-    for (const auto& n : normals) vec("vn", n);
-    for (const auto& t : mesh.triangles) {
-        line = "f";
+    vectors("v", mesh.points);
+    vectors("vn", normals);
+    out.items(mesh.triangles.size(), [&](size_t f, std::string& line) {
+        const auto& t = mesh.triangles[f];
+        line += 'f';
         for (int k = 0; k < 3; ++k) {
             const std::string i = std::to_string(uint64_t(t[size_t(k)]) + 1);  // OBJ counts from 1
             line += ' ';
@@ -237,8 +258,7 @@ void writeObj(const Mesh& mesh, Out& out, const WriteOptions& o)
             if (o.normals) line += "//" + i;
         }
         line += '\n';
-        out.text(line);
-    }
+    });
 }
 
 void writeStl(const Mesh& mesh, Out& out, const WriteOptions& o)
@@ -253,16 +273,17 @@ void writeStl(const Mesh& mesh, Out& out, const WriteOptions& o)
     h.resize(80, ' ');
     out.text(h);
     out.pod(uint32_t(mesh.triangles.size()));
-    for (const auto& t : mesh.triangles) {
+    out.items(mesh.triangles.size(), [&](size_t i, std::string& s) {
+        const auto& t = mesh.triangles[i];
         const auto n = faceNormal(mesh, t);
         const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         float rec[12];
         for (int k = 0; k < 3; ++k) rec[k] = len > 0 ? float(n[size_t(k)] / len) : 0.0f;
         for (int c = 0; c < 3; ++c)
             for (int k = 0; k < 3; ++k) rec[3 + 3 * c + k] = mesh.points[t[size_t(c)]][size_t(k)];
-        out.bytes(rec, sizeof rec);
-        out.pod(uint16_t(0));
-    }
+        s.append(reinterpret_cast<const char*>(rec), sizeof rec);
+        s.append(2, '\0');  // attribute byte count
+    });
 }
 
 // glTF 2.0 binary through tinygltf (Debian's libtinygltf-dev): one node, one triangle primitive with
