@@ -479,7 +479,8 @@ int main(int argc, char** argv)
                          ->default_val(opt.ratio)
                          ->check(CLI::Range(0.0, 1.0));
     auto* facesOpt = app.add_option("-f,--faces", opt.targetFaces,
-                                    "Keep this many faces instead of a ratio (an exact counting pass finds R)")
+                                    "Keep this many faces instead of a ratio (a counting pass finds R: exact, or on\n"
+                                    "volumes of more than 2 x --count-sample runs of 64 blocks a sample, see there)")
                          ->check(CLI::PositiveNumber);
     ratioOpt->excludes(facesOpt);
     app.add_option("-b,--batch", opt.batchFaces,
@@ -495,6 +496,12 @@ int main(int argc, char** argv)
                    "Changes the output slightly (more slabs, more seams); threads and ranks never do")
         ->default_val(opt.blocksPerSlab)
         ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
+    app.add_option("--count-sample", opt.countSampleRuns,
+                   "For --faces on a large volume: count at least this many runs of 64 blocks, one of each run of\n"
+                   "consecutive ones, instead of every block, once the volume has twice as many; R is then raised\n"
+                   "by three standard errors of the estimate and the final pass takes the rest off. 0: count every block")
+        ->default_val(opt.countSampleRuns)
+        ->check(CLI::Range(uint64_t(0), uint64_t(1) << 40));
     app.add_option("--report", reportPath, "Also write a JSON report (faces, decimations, memory, time) to this file");
     app.add_option("--trace", tracePath,
                    "Also write one CSV row per decimation: decimation,faces_generated,faces_before,faces_after,\n"

@@ -55,6 +55,23 @@ for EXTRA in "--max-error 0.3" "--attributes noise --attribute-weight 2 --ratio 
   echo "$EXTRA: 2 ranks, same bytes as one process"
 done
 
+# A face target on a large volume counts a sample of the blocks (a gyroid of 77 slabs of 64 blocks:
+# every fourth run of 64), each rank its own sampled runs; a sample too coarse to say anything (the
+# noise volume, every fifth run) is followed by a count of every block, agreed among the ranks again.
+"$B/make_volume" gyroid -n 128 -o "$W/g.vdb" > /dev/null
+for CASE in "g 16 4" "v 8 1"; do
+  read -r V S STRIDE <<< "$CASE"
+  ARGS=(--faces 20000 --count-sample "$S" --batch 1000 --slab-blocks 64 -q)
+  "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" -o "$W/s_one.ply" --report "$W/s_one.json"
+  grep -q "\"count_stride\": $STRIDE," "$W/s_one.json" || fail "$V: count stride is not $STRIDE"
+  for N in 2 4; do
+    mpirun -np $N "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" --threads 1 -o "$W/s_$N.ply" --report "$W/s_$N.json"
+    cmp "$W/s_one.ply" "$W/s_$N.ply" || fail "$V --count-sample $S: $N ranks wrote other bytes"
+    grep -q "\"count_stride\": $STRIDE," "$W/s_$N.json" || fail "$V: $N ranks counted at another stride"
+  done
+  echo "$V --count-sample $S (stride $STRIDE): 2 and 4 ranks, same bytes as one process"
+done
+
 # A chain with the default batch and larger slabs: its coarser level's slab copies are decimated region by
 # region (more than one region's share of faces to remove each), on 2 ranks as in one process.
 "$B/vdb_isosimp" "$W/v.vdb" --lods 0.2,0.05 --slab-blocks 512 -q -o "$W/r_one.ply"

@@ -328,6 +328,47 @@ TEST(Pipeline, FaceCountReportsProgressAndCancels)
     EXPECT_EQ(only.fractions.front(), 0.0);
 }
 
+TEST(Pipeline, AFaceTargetOnALargeVolumeCountsASample)
+{
+    // A gyroid of 4,913 blocks in 77 slabs of 64 (77 runs of 64 blocks): with countSampleRuns 16 the
+    // count reads one run in four. The rate it gives lies above the exact one (the margin covers the
+    // estimate's error), the final pass still meets the target, the report's full count is the exact
+    // one, and the threads do not change the mesh. A sample of one run says nothing: every block is
+    // counted then, and the mesh is the exact count's.
+    const std::string path = ::testing::TempDir() + "/gyroid128_" + std::to_string(::getpid()) + ".vdb";
+    ASSERT_EQ(std::system((std::string(MAKE_VOLUME_EXE) + " gyroid -n 128 -o " + path + " > /dev/null").c_str()), 0);
+    const auto run = [&](uint64_t sampleRuns, int threads) {
+        Options o;
+        o.targetFaces = 20000;
+        o.blocksPerSlab = 64;
+        o.countSampleRuns = sampleRuns;
+        o.threads = threads;
+        return simplifyFile(path, o);
+    };
+    const Result exact = run(0, 0), sampled = run(16, 0), sampledOne = run(16, 1), coarse = run(1, 0);
+    std::remove(path.c_str());
+    EXPECT_EQ(exact.report.countStride, 1u);
+    EXPECT_EQ(exact.report.countMargin, 0.0);
+    EXPECT_EQ(sampled.report.countStride, 4u);
+    EXPECT_GE(sampled.report.countMargin, 0.01);
+    EXPECT_LE(sampled.report.countMargin, 0.1);
+    std::printf("exact count %llu faces, R = %.5f; sampled (stride %llu, margin %.4f) R = %.5f\n",
+                (unsigned long long)exact.report.facesFull, exact.report.ratio, (unsigned long long)sampled.report.countStride,
+                sampled.report.countMargin, sampled.report.ratio);
+    EXPECT_EQ(sampled.report.facesFull, exact.report.facesFull);
+    EXPECT_GT(sampled.report.ratio, exact.report.ratio) << "the slabs keep at least the target between them";
+    EXPECT_LT(sampled.report.ratio, 1.2 * exact.report.ratio);
+    EXPECT_LE(std::abs(double(sampled.report.facesOut) - 20000.0), 0.02 * 20000.0) << sampled.report.facesOut;
+    expectClosedOutward(sampled.mesh, false, "sampled count");
+    const double vExact = eval::computeMeshStats(exact.mesh).signedVolume;
+    EXPECT_NEAR(eval::computeMeshStats(sampled.mesh).signedVolume, vExact, 0.01 * std::abs(vExact));
+    EXPECT_EQ(sampled.mesh.triangles, sampledOne.mesh.triangles);
+    EXPECT_EQ(sampled.mesh.points, sampledOne.mesh.points);
+    EXPECT_EQ(coarse.report.countStride, 1u);
+    EXPECT_EQ(coarse.mesh.triangles, exact.mesh.triangles);
+    EXPECT_EQ(coarse.mesh.points, exact.mesh.points);
+}
+
 TEST(Pipeline, AFaceTargetCountsOnTheVolumeItExtracts)
 {
     // The count reads copies of the leaves and extraction follows on the same volume: one open (a

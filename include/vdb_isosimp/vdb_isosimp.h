@@ -45,8 +45,12 @@ struct Options {
     std::optional<double> iso;
     // Decimation rate R in (0, 1]: faces kept / faces of the full-resolution surface. Default 0.2.
     double ratio = 0.2;
-    // If > 0: keep this many faces instead (an exact counting pass over the blocks turns it into R).
+    // If > 0: keep this many faces instead. A counting pass over the blocks turns it into R: exact, or
+    // on volumes of more than 2 * countSampleRuns runs of 64 blocks a stratified sample of at least
+    // countSampleRuns runs, whose R is raised by three standard errors of its estimate (at least 1 %)
+    // so the slabs keep enough; the final pass takes the rest off. 0: always exact. Default 4096.
     uint64_t targetFaces = 0;
+    uint64_t countSampleRuns = 4096;
     // B: the intermediate mesh holds at most R*F + B faces; a pass runs every B/2 new faces and leaves
     // B/2 of room for collapses deferred to a later pass. Bigger: better quality, more memory. Default 100000.
     uint64_t batchFaces = 100000;
@@ -140,6 +144,10 @@ struct Report {
     double secondsFinal = 0.0;        // of which: the final pass on the whole surface and the result's copy
     double secondsFinalParallel = 0.0;  // of secondsFinal: on all threads (the zero-area scan, the mesh's collection)
     double secondsCount = 0.0;        // of which: counting the full-resolution faces for a face target
+    // A face target's count: every this-many-th run of 64 blocks was counted (1: all, exact), and R was
+    // raised by this fraction of the estimate (0 when exact).
+    uint64_t countStride = 1;
+    double countMargin = 0.0;
     double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
     // Of `seconds`, the set-up every rank repeats: opening the file (its checks and topology), choosing
     // the iso-value and listing the blocks, cutting them into slabs; and counting which blocks read

@@ -62,26 +62,29 @@ public:
     size_t rank() const override { return size_t(mRank); }
     size_t ranks() const override { return size_t(mRanks); }
 
-    uint64_t agree(const std::string& error, uint64_t blocks, uint64_t faces) override
+    std::array<uint64_t, 2> agree(const std::string& error, uint64_t blocks, std::array<uint64_t, 2> counts) override
     {
-        const uint64_t mine[3] = {error.empty() ? 0u : 1u, blocks, faces};
-        std::vector<uint64_t> all(3 * size_t(mRanks));
-        check(MPI_Allgather(mine, 3, MPI_UINT64_T, all.data(), 3, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
+        constexpr size_t kWords = 4;
+        const uint64_t mine[kWords] = {error.empty() ? 0u : 1u, blocks, counts[0], counts[1]};
+        std::vector<uint64_t> all(kWords * size_t(mRanks));
+        check(MPI_Allgather(mine, kWords, MPI_UINT64_T, all.data(), kWords, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
         int failed = -1;
         for (int r = 0; r < mRanks && failed < 0; ++r)
-            if (all[3 * size_t(r)]) failed = r;
+            if (all[kWords * size_t(r)]) failed = r;
         if (failed < 0) {
-            uint64_t sum = 0;
+            std::array<uint64_t, 2> sums{0, 0};
             for (int r = 0; r < mRanks; ++r) {
-                sum += all[3 * size_t(r) + 2];
-                if (all[3 * size_t(r) + 1] == all[1]) continue;
+                const uint64_t* theirs = &all[kWords * size_t(r)];
+                sums[0] += theirs[2];
+                sums[1] += theirs[3];
+                if (theirs[1] == all[1]) continue;
                 if (mRank == 0)
                     throw InputError("ranks 0 and " + std::to_string(r) + " read different block lists (" +
-                                     std::to_string(all[1]) + " and " + std::to_string(all[3 * size_t(r) + 1]) +
+                                     std::to_string(all[1]) + " and " + std::to_string(theirs[1]) +
                                      " blocks): the file changed or differs between machines");
                 throw PeerFailed("ranks disagree on the input");
             }
-            return sum;
+            return sums;
         }
         // The first failed rank's message goes to rank 0, which reports it.
         if (failed > 0 && mRank == failed) sendPayload(error.data(), error.size(), 0, kAgreeTag);
@@ -90,7 +93,7 @@ public:
             const std::vector<char> text = receivePayload(failed, kAgreeTag);
             message.assign(text.begin(), text.end());
         }
-        if (!error.empty()) return 0;  // the caller goes on with its own error
+        if (!error.empty()) return {0, 0};  // the caller goes on with its own error
         if (mRank == 0) throw InputError(message + " (rank " + std::to_string(failed) + ")");
         throw PeerFailed("rank " + std::to_string(failed) + " failed");
     }

@@ -3,6 +3,7 @@
 #include "vdb/volume_reader.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
+#include <array>
 #include <functional>
 #include <memory>
 #include <string>
@@ -24,10 +25,10 @@ public:
     virtual size_t rank() const = 0;
     virtual size_t ranks() const = 0;
     // Called by every rank once its block list is known (`error` empty) or its start failed (the
-    // message): when all agree on `blocks`, returns the sum of every rank's `faces` (the faces each
+    // message): when all agree on `blocks`, returns the sums of every rank's `counts` (what each
     // counted for a face target); otherwise throws on every rank, on rank 0 the first failed rank's
     // message.
-    virtual uint64_t agree(const std::string& error, uint64_t blocks, uint64_t faces) = 0;
+    virtual std::array<uint64_t, 2> agree(const std::string& error, uint64_t blocks, std::array<uint64_t, 2> counts) = 0;
     // Hands a finished node to rank `to` (or, `error` not empty, the error that stopped it).
     virtual void send(size_t to, const std::vector<char>& bytes, const std::string& error) = 0;
     // The node rank `from` sends; throws the error it sent instead.

@@ -43,6 +43,8 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds_final", r.secondsFinal),
             real("seconds_final_parallel", r.secondsFinalParallel),
             real("seconds_count", r.secondsCount),
+            integer("count_stride", r.countStride),
+            real("count_margin", r.countMargin),
             real("seconds_layout", r.secondsLayout),
             real("seconds_open", r.secondsOpen),
             real("seconds_blocks", r.secondsBlocks),

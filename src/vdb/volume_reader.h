@@ -91,6 +91,10 @@ public:
     };
     // Copies left unreleased go with the reader.
     virtual std::unique_ptr<CopyReader> copyReader() const = 0;
+    // A reader whose copies are its own, all freed with it (release does nothing): for a few blocks
+    // read apart from the others, such as one run of a sampled count, whose neighbours' leaves no
+    // later block of the same reader would release. One thread at a time.
+    virtual std::unique_ptr<CopyReader> privateCopyReader() const = 0;
     // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
     // a few MB (more often, the other threads' TLB flushes cost time).
     static constexpr size_t kTrimEveryBlocks = 16;
