@@ -11,6 +11,7 @@
 #include "core/marching_cubes.h"
 #include "core/piece_bytes.h"
 #include "core/schedule.h"
+#include "pipeline/face_count.h"
 #include "pipeline/levels.h"
 #include "pipeline/memory_budget.h"
 #include "pipeline/pipeline_internal.h"
@@ -71,125 +72,6 @@ void checkOptions(const Options& o)
         throw InputError("minimum component area must be a finite number >= 0");
 }
 
-// First stage of the pipelines below: next, next + 1, ... up to end (exclusive), in order. The counter
-// lives with the caller: TBB calls stage bodies as const.
-tbb::filter<void, size_t> indices(size_t& next, size_t end)
-{
-    return tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order, [&next, end](tbb::flow_control& fc) -> size_t {
-        if (next == end) {
-            fc.stop();
-            return 0;
-        }
-        return next++;
-    });
-}
-
-// Progress is reported once per this many blocks, extracted or counted.
-constexpr size_t kProgressEveryBlocks = 256;
-
-// The blocks are counted in runs of this many consecutive ones, each within one slab (so a rank's
-// runs are whole, whatever the ranks).
-constexpr size_t kCountRun = 64;
-// The rate a sampled count gives is raised by this many standard errors of its estimate (at least 1 %):
-// the slabs keep at least the target between them, and the final pass takes the rest off. A sample
-// whose margin would pass kCountMarginMost (a surface in few of the blocks, say a small blob in a
-// large fog) is not used: every block is counted then.
-constexpr double kCountMarginErrors = 3.0, kCountMarginLeast = 0.01, kCountMarginMost = 0.1;
-
-// The runs of blocks a face target's count reads: all of them while there are fewer than twice
-// Options::countSampleRuns, else one of each `stride` consecutive ones, at least that many: a
-// stratified sample over the blocks in tree order, i.e. spread over the whole volume. Within its
-// stride, the place of a sampled run is a hash of the stride's number, so the samples do not fall at
-// the same place of every subtree of the tree order (such as each slab's first run, on the volume's
-// shell).
-struct CountRuns {
-    std::vector<std::pair<size_t, size_t>> all;  // [begin, end) of every run, in block order
-    std::vector<size_t> sampled;                  // indices into `all`, increasing
-    size_t stride = 1;
-};
-
-CountRuns countRuns(const std::vector<Slab>& slabs, uint64_t sampleRuns)
-{
-    CountRuns c;
-    for (const Slab& slab : slabs)
-        for (size_t b = slab.begin; b < slab.end; b += kCountRun) c.all.push_back({b, std::min(slab.end, b + kCountRun)});
-    c.stride = sampleRuns == 0 ? 1 : std::max<size_t>(1, c.all.size() / sampleRuns);
-    for (size_t first = 0; first < c.all.size(); first += c.stride) {
-        uint64_t h = (uint64_t(first) + 1) * 0x9E3779B97F4A7C15ull;  // a fixed mix of the stratum's number
-        h ^= h >> 29;
-        h *= 0xBF58476D1CE4E5B9ull;
-        h ^= h >> 32;
-        c.sampled.push_back(first + (c.stride == 1 ? 0 : size_t(h % std::min(c.stride, c.all.size() - first))));
-    }
-    return c;
-}
-
-// Faces of the sampled runs within blocks [begin, end) and the sum of their squares (the sample's
-// spread says how far the estimate may be off).
-struct FaceCount {
-    uint64_t faces = 0, squares = 0;
-};
-
-// Face count of the full-resolution surface over the sampled runs (all of them, exact, at stride 1)
-// within blocks [begin, end): the same case table over the same blocks. It reads copies of the leaves
-// (Volume::CopyReader), so the volume stays as opened for extraction, and frees each copy once its
-// last block is counted (blocks in order, as in extraction), so counting does not load the whole
-// volume at once. The blocks go to the threads in runs of consecutive ones: a block alone is too
-// little work to hand on, and two threads on consecutive blocks keep meeting on the load lock of the
-// leaf they share. `counted` hears the fraction of runs counted, in order; false from it cancels.
-FaceCount countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, const CountRuns& plan, size_t begin,
-                     size_t end, const Classifier& cls, const std::function<bool(double)>& counted)
-{
-    constexpr size_t kRun = kCountRun;
-    // Per thread, twice extraction's interval: each trim flushes the other threads' TLBs, and the
-    // count does nothing else between reads.
-    constexpr size_t kTrimEveryBlocks = 2 * Volume::kTrimEveryBlocks;
-    std::vector<std::pair<size_t, size_t>> mine;
-    for (size_t r : plan.sampled)
-        if (plan.all[r].first >= begin && plan.all[r].second <= end) mine.push_back(plan.all[r]);
-    const size_t runs = mine.size();
-    if (runs == 0) return {};
-    const auto runBlocks = [&](size_t run) { return mine[run]; };
-    // Every run: copies shared by all, each freed by its own block. Sampled runs: each its own copies
-    // (a run's blocks read leaves of the blocks after it, which are not counted and would not free them).
-    const std::unique_ptr<Volume::CopyReader> copies = plan.stride == 1 ? vol.copyReader() : nullptr;
-    const auto count = [&](size_t run) {
-        const auto [first, last] = runBlocks(run);
-        uint64_t faces = 0;
-        BlockSamples s;
-        const std::unique_ptr<Volume::CopyReader> own = copies ? nullptr : vol.privateCopyReader();
-        Volume::CopyReader& reader = copies ? *copies : *own;
-        for (size_t i = first; i < last; ++i) {
-            reader.sample(blocks[i], s);
-            faces += countBlockTriangles(s, cls);
-            // The pages a run's leaf reads fault in (64 KB around each) would otherwise stay until the
-            // run is added, with several runs in flight: the count would be the peak of a run kept to
-            // a small output (docs/perf.md).
-            if ((i - first + 1) % kTrimEveryBlocks == 0) vol.trimInputMapping();
-        }
-        return std::make_pair(run, faces);
-    };
-    FaceCount total;
-    const auto add = [&](std::pair<size_t, uint64_t> run) {
-        total.faces += run.second;
-        total.squares += run.second * run.second;
-        const auto [first, last] = runBlocks(run.first);
-        if (copies)
-            for (size_t i = first; i < last; ++i) copies->release(blocks[i]);
-        vol.trimInputMapping();
-        static_assert(kProgressEveryBlocks % kRun == 0, "the count reports after whole runs");
-        constexpr size_t kReportEveryRuns = kProgressEveryBlocks / kRun;
-        if (((run.first + 1) % kReportEveryRuns == 0 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))
-            throw Cancelled("cancelled");
-    };
-    size_t next = 0;
-    tbb::parallel_pipeline(4 * std::max<size_t>(1, std::thread::hardware_concurrency()),
-                           indices(next, runs) &
-                               tbb::make_filter<size_t, std::pair<size_t, uint64_t>>(tbb::filter_mode::parallel, count) &
-                               tbb::make_filter<std::pair<size_t, uint64_t>, void>(tbb::filter_mode::serial_in_order, add));
-    return total;
-}
-
 // One run of the pipeline over one volume: the stages in the order runPipeline calls them, and the
 // state they hand on.
 class PipelineRun {
@@ -206,9 +88,9 @@ public:
     void keepOwnLeaves();
     void countFacesForTarget();
     bool sampleTooCoarse() const;
+    FaceCount sampledCount() const { return {mResult.report.facesFull, mCountSquares}; }
     void countFacesExactly();
     void countFacesOver(uint64_t sampleRuns);
-    double sampledCountMargin() const;
     void agreeAmongRanks(const std::string& error);
     void setTarget();
     bool runTree();
@@ -362,11 +244,10 @@ void PipelineRun::countFacesForTarget()
     if (mOpt.targetFaces > 0) countFacesOver(mOpt.countSampleRuns);
 }
 
-// The sample counted too few faces to say how many there are (sampledCountMargin): every block is
-// counted instead.
+// The sample counted too few faces to say how many there are: every block is counted instead.
 bool PipelineRun::sampleTooCoarse() const
 {
-    return mOpt.targetFaces > 0 && mCountRuns.stride > 1 && sampledCountMargin() > kCountMarginMost;
+    return mOpt.targetFaces > 0 && mCountRuns.stride > 1 && estimateMargin(mCountRuns, sampledCount()) > kCountMarginMost;
 }
 
 void PipelineRun::countFacesExactly()
@@ -390,18 +271,6 @@ void PipelineRun::countFacesOver(uint64_t sampleRuns)
     mResult.report.secondsCount += mClock.seconds() - start;
 }
 
-// How far below a sampled count's estimate of the full faces the rate takes them: kCountMarginErrors
-// standard errors of the estimate, from the spread of the sampled runs' faces (as for a simple random
-// sample of runs, which a stratified one does not exceed); 1 where the sample says nothing.
-double PipelineRun::sampledCountMargin() const
-{
-    const double n = double(mCountRuns.sampled.size()), runs = double(mCountRuns.all.size());
-    const double faces = double(mResult.report.facesFull), squares = double(mCountSquares);
-    if (n < 2 || faces <= 0) return 1.0;
-    const double mean = faces / n, variance = std::max(0.0, (squares - faces * mean) / (n - 1));
-    return std::max(kCountMarginLeast, kCountMarginErrors * std::sqrt(variance / n * (1.0 - n / runs)) / mean);
-}
-
 void PipelineRun::setTarget()
 {
     // A LOD chain is extracted at its finest rate; the final pass makes the coarser levels from it.
@@ -414,10 +283,8 @@ void PipelineRun::setTarget()
     }
     // A sampled count: the sampled faces scaled to all blocks, taken the margin low. The report's
     // full count is the exact one extraction makes.
-    size_t blocksSampled = 0;
-    for (size_t r : mCountRuns.sampled) blocksSampled += mCountRuns.all[r].second - mCountRuns.all[r].first;
-    const double estimate = double(mResult.report.facesFull) * double(mBlocks.size()) / double(blocksSampled);
-    const double margin = sampledCountMargin();
+    const double estimate = estimatedFaces(mCountRuns, mBlocks.size(), sampledCount());
+    const double margin = estimateMargin(mCountRuns, sampledCount());
     mRatio = std::min(1.0, double(mOpt.targetFaces) / (estimate * (1.0 - margin)));
     mResult.report.countMargin = margin;
     mResult.report.facesFull = 0;

@@ -3,6 +3,8 @@
 #include "vdb/volume_reader.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
+#include <tbb/parallel_pipeline.h>
+
 #include <array>
 #include <functional>
 #include <memory>
@@ -10,6 +12,22 @@
 #include <vector>
 
 namespace vdb_isosimp {
+
+// First stage of the pipelines over blocks (extraction, the face count): next, next + 1, ... up to end (exclusive), in order. The counter
+// lives with the caller: TBB calls stage bodies as const.
+inline tbb::filter<void, size_t> indices(size_t& next, size_t end)
+{
+    return tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order, [&next, end](tbb::flow_control& fc) -> size_t {
+        if (next == end) {
+            fc.stop();
+            return 0;
+        }
+        return next++;
+    });
+}
+
+// Progress is reported once per this many blocks, extracted or counted.
+constexpr size_t kProgressEveryBlocks = 256;
 
 // The whole pipeline on the volume `open` returns (called once, after the options are checked):
 // `name` is what Report::file holds and what every InputError / EmptySurfaceError message starts
