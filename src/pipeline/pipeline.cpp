@@ -88,7 +88,6 @@ public:
     void keepOwnLeaves();
     void countFacesForTarget();
     bool sampleTooCoarse() const;
-    FaceCount sampledCount() const { return {mResult.report.facesFull, mCountSquares}; }
     void countFacesExactly();
     void countFacesOver(uint64_t sampleRuns);
     void agreeAmongRanks(const std::string& error);
@@ -141,8 +140,8 @@ private:
     bool mFlip = false;
     std::vector<BlockOrigin> mBlocks;
     double mRatio = 0.0;
-    CountRuns mCountRuns;       // a face target's count: the runs of blocks it reads
-    uint64_t mCountSquares = 0;  // and the sum of their face counts' squares
+    CountRuns mCountRuns;  // a face target's count: the runs of blocks it reads
+    FaceCount mCount;      // and what they hold, summed over the ranks by agreeAmongRanks
     BlockOrder mOrder;
     std::vector<Slab> mSlabs;
     uint64_t mSlabBatch = 0;
@@ -247,7 +246,7 @@ void PipelineRun::countFacesForTarget()
 // The sample counted too few faces to say how many there are: every block is counted instead.
 bool PipelineRun::sampleTooCoarse() const
 {
-    return mOpt.targetFaces > 0 && mCountRuns.stride > 1 && estimateMargin(mCountRuns, sampledCount()) > kCountMarginMost;
+    return mOpt.targetFaces > 0 && mCountRuns.stride > 1 && estimateMargin(mCountRuns, mCount) > kCountMarginMost;
 }
 
 void PipelineRun::countFacesExactly()
@@ -261,11 +260,9 @@ void PipelineRun::countFacesOver(uint64_t sampleRuns)
     const double start = mClock.seconds();
     mCountRuns = countRuns(mSlabs, sampleRuns);
     mResult.report.countStride = mCountRuns.stride;
-    const FaceCount count = countFaces(*mVol, mBlocks, mCountRuns, begin, end, mCls, [this](double fraction) {
+    mCount = countFaces(*mVol, mBlocks, mCountRuns, begin, end, mCls, [this](double fraction) {
         return !mProgress || mProgress->counting(fraction);
     });
-    mResult.report.facesFull = count.faces;
-    mCountSquares = count.squares;
     // The count and the trim of what it freed (each rank its own share): they divide among ranks.
     malloc_trim(0);
     mResult.report.secondsCount += mClock.seconds() - start;
@@ -277,17 +274,17 @@ void PipelineRun::setTarget()
     mRatio = mOpt.lods.empty() ? mOpt.ratio : mOpt.lods.front();
     if (mOpt.targetFaces == 0) return;
     if (mCountRuns.stride == 1) {
-        if (mResult.report.facesFull == 0) throw noSurface();
-        mRatio = std::min(1.0, double(mOpt.targetFaces) / double(mResult.report.facesFull));
+        if (mCount.faces == 0) throw noSurface();
+        mResult.report.facesFull = mCount.faces;
+        mRatio = std::min(1.0, double(mOpt.targetFaces) / double(mCount.faces));
         return;
     }
     // A sampled count: the sampled faces scaled to all blocks, taken the margin low. The report's
     // full count is the exact one extraction makes.
-    const double estimate = estimatedFaces(mCountRuns, mBlocks.size(), sampledCount());
-    const double margin = estimateMargin(mCountRuns, sampledCount());
+    const double estimate = estimatedFaces(mCountRuns, mBlocks.size(), mCount);
+    const double margin = estimateMargin(mCountRuns, mCount);
     mRatio = std::min(1.0, double(mOpt.targetFaces) / (estimate * (1.0 - margin)));
     mResult.report.countMargin = margin;
-    mResult.report.facesFull = 0;
 }
 
 // Slabs: runs of consecutive blocks, each extracted and decimated on its own by its own integrator.
@@ -335,9 +332,8 @@ void PipelineRun::keepOwnLeaves()
 void PipelineRun::agreeAmongRanks(const std::string& error)
 {
     if (!mRanks) return;
-    const std::array<uint64_t, 2> sums = mRanks->agree(error, mBlocks.size(), {mResult.report.facesFull, mCountSquares});
-    mResult.report.facesFull = sums[0];
-    mCountSquares = sums[1];
+    const std::array<uint64_t, 2> sums = mRanks->agree(error, mBlocks.size(), {mCount.faces, mCount.squares});
+    mCount = {sums[0], sums[1]};
 }
 
 // The merge tree (slabs.h): this process's node of it, made from its slabs and the nodes its child

@@ -176,6 +176,23 @@ public:
         });
     }
 
+    // A block sampled by a copy reader: a leaf still on disk is read from the copy `copied` finds, or
+    // from a copy of its node that `read(leaf)` loads (a copy keeps its place in the file: loading it
+    // leaves the volume's node on disk). Leaves are looked up in the tree, not through the accessor:
+    // an accessor that caches a leaf reads its voxels (it keeps a pointer to them), which would load
+    // the volume's own. Tiles are read through it.
+    template <typename Copied, typename Read>
+    void sampleCopies(const std::array<int32_t, 3>& origin, BlockSamples& out, Copied copied, Read read) const
+    {
+        typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
+            const LeafT* leaf = mGrid->tree().probeConstLeaf(at);
+            if (!leaf) return nullptr;
+            if (!leaf->buffer().isOutOfCore()) return leaf->buffer().data();
+            if (const ValueT* v = copied(*leaf)) return v;
+            return read(*leaf);
+        });
+    }
     // The same with the voxels `valuesAt` gives for the leaf at a coordinate (null: a tile there,
     // read through `acc`).
     template <typename ValuesAt>
@@ -431,19 +448,14 @@ private:
 
         void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) override
         {
-            // Leaves are looked up in the tree, not through the accessor: an accessor that caches a
-            // leaf reads its voxels (it keeps a pointer to them), which would load the volume's own.
-            // Tiles are read through it.
             if (!mSlotOf) return mVolume.sample(origin, out, 0);  // a caller's grid: as extraction reads it
-            typename GridT::ConstAccessor acc = mVolume.mGrid->getConstAccessor();
-            mVolume.sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
-                const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(at);
-                if (!leaf) return nullptr;
-                if (!leaf->buffer().isOutOfCore()) return leaf->buffer().data();
-                if (const uint32_t slot = mSlotOf[leaf->transientData()].load(std::memory_order_acquire))
-                    return values(slot - 1);
-                return load(*leaf);
-            });
+            mVolume.sampleCopies(
+                origin, out,
+                [&](const LeafT& leaf) -> const ValueT* {
+                    const uint32_t slot = mSlotOf[leaf.transientData()].load(std::memory_order_acquire);
+                    return slot ? values(slot - 1) : nullptr;
+                },
+                [&](const LeafT& leaf) { return load(leaf); });
         }
 
         void release(const std::array<int32_t, 3>& o) override
@@ -492,8 +504,7 @@ private:
             std::atomic<uint32_t>& mine = mSlotOf[leaf.transientData()];
             std::lock_guard<std::mutex> lock(stripe(leaf.origin()));
             if (const uint32_t slot = mine.load(std::memory_order_acquire)) return values(slot - 1);  // loaded meanwhile
-            // A copy of a node still on disk keeps its place in the file: reading it leaves the
-            // volume's node unread. Its voxels go to the pool, and the copy with its array at once.
+            // The copy's voxels go to the pool, and the copy with its array at once.
             LeafT copy(leaf);
             loadLeaf(copy, mVolume.mInfo.gridName);
             const uint32_t slot = takeSlot();
@@ -521,20 +532,19 @@ private:
         void sample(const std::array<int32_t, 3>& origin, BlockSamples& out) override
         {
             if (!mVolume.mFromFile) return mVolume.sample(origin, out, 0);
-            typename GridT::ConstAccessor acc = mVolume.mGrid->getConstAccessor();
-            mVolume.sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
-                const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(at);
-                if (!leaf) return nullptr;
-                if (!leaf->buffer().isOutOfCore()) return leaf->buffer().data();
-                for (size_t i = mCopies.size(); i-- > 0;)
-                    if (mCopies[i].first == leaf->origin()) return mCopies[i].second->buffer().data();
-                // As Copies::load: a copy of a node still on disk reads it and leaves the volume's
-                // node unread.
-                auto copy = std::make_unique<LeafT>(*leaf);
-                loadLeaf(*copy, mVolume.mInfo.gridName);
-                mCopies.emplace_back(leaf->origin(), std::move(copy));
-                return mCopies.back().second->buffer().data();
-            });
+            mVolume.sampleCopies(
+                origin, out,
+                [&](const LeafT& leaf) -> const ValueT* {
+                    for (size_t i = mCopies.size(); i-- > 0;)
+                        if (mCopies[i].first == leaf.origin()) return mCopies[i].second->buffer().data();
+                    return nullptr;
+                },
+                [&](const LeafT& leaf) {
+                    auto copy = std::make_unique<LeafT>(leaf);
+                    loadLeaf(*copy, mVolume.mInfo.gridName);
+                    mCopies.emplace_back(leaf.origin(), std::move(copy));
+                    return mCopies.back().second->buffer().data();
+                });
         }
         void release(const std::array<int32_t, 3>&) override {}
 
