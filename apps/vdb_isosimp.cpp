@@ -296,6 +296,21 @@ struct OutputChoices {
     MpiRun* mpi = nullptr;  // under mpirun: this process's share of each run; rank 0 alone writes
 };
 
+// A face target the surface cannot reach (within 1 %): the edges left would each change the surface's
+// topology or fold a face over. The mesh is closed, so its Euler characteristic is V - F/2: at most 0
+// means a genus of at least 1 - chi/2, above 0 at least chi/2 closed pieces.
+void noteMissedTarget(const std::string& who, const Report& r)
+{
+    if (r.facesOut <= r.facesTarget + std::max<uint64_t>(2, r.facesTarget / 100)) return;
+    const long long chi = (long long)r.vertsOut - (long long)(r.facesOut / 2);
+    const std::string shape = chi <= 0 ? "genus " + std::to_string(1 - chi / 2) + " or more"
+                                       : std::to_string((chi + 1) / 2) + " or more closed pieces";
+    std::fprintf(stderr,
+                 "%s%llu faces, not the %llu asked for: the surface has %s (Euler characteristic %lld), and every "
+                 "collapse left would change that or fold faces over\n",
+                 who.c_str(), (unsigned long long)r.facesOut, (unsigned long long)r.facesTarget, shape.c_str(), chi);
+}
+
 // One input to one mesh (and its report and trace): the summary line or one error line, and the exit
 // code (0 done, 1 bad input or output, 3 no surface, 128 + signal when interrupted). `done` gets the
 // report of a successful run.
@@ -366,6 +381,7 @@ int meshOne(const RunPaths& p, const Options& opt, const OutputChoices& out, Ter
                          input.c_str(), r.grid.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
                          (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb,
                          levelPaths.empty() ? output.c_str() : levelPaths.back().c_str());
+        if (!quiet && !(opt.maxError > 0)) noteMissedTarget(who, r);  // under a bound, the bound may stop it
         if (done) *done = r;
         return 0;
     } catch (const MemoryBudgetError& e) {
@@ -475,7 +491,8 @@ int main(int argc, char** argv)
     auto* isoOpt = app.add_option("--iso", iso,
                                   "Iso-value. Default: 0 for level sets (inside: value < iso); for fog and other\n"
                                   "grids (inside: value > iso) the midpoint of the value range, which is printed");
-    auto* ratioOpt = app.add_option("-r,--ratio", opt.ratio, "Decimation rate R in (0,1]: faces kept / full faces")
+    auto* ratioOpt = app.add_option("-r,--ratio", opt.ratio, "Decimation rate R in (0,1]: faces kept / full faces. R = 1 is the exact Marching Cubes surface,\n"
+                   "with its zero-area faces where voxels sit exactly at the iso-value (below 1 none is left)")
                          ->default_val(opt.ratio)
                          ->check(CLI::Range(0.0, 1.0));
     auto* facesOpt = app.add_option("-f,--faces", opt.targetFaces,

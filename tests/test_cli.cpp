@@ -12,6 +12,7 @@
 #include <openvdb/tools/Composite.h>
 
 #include "test_files.h"
+#include "test_volumes.h"
 
 #include <gtest/gtest.h>
 
@@ -228,6 +229,31 @@ TEST(Cli, HelpExplainsEveryOption)
     for (const char* opt : {"--output", "--grid", "--iso", "--ratio", "--faces", "--batch", "--threads", "--report", "--trace", "--quiet",
                             "--frames", "--min-component", "smoke.####.vdb", "density"})
         EXPECT_NE(help.find(opt), std::string::npos) << opt;
+}
+
+// A face target below what the surface's topology allows (the integer CT volume, voxels exactly at the
+// iso-value, is a sponge of many handles) is met as far as it can be, and the summary says why it
+// stops above it, with the genus the mesh's Euler characteristic gives; a reachable target says nothing.
+TEST(Cli, AnUnreachableFaceTargetSaysWhy)
+{
+    const auto d = freshDir("unreachable");
+    const vdb_isosimp::volumes::TestVolume ct = vdb_isosimp::volumes::makeVolume("ct-int", 64);
+    openvdb::io::File(d + "/ct.vdb").write({ct.grid});
+    sphere(d);
+    const RunResult r = run(d, "ct.vdb --iso 100 -f 8 -o ct.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const vdb_isosimp::eval::MeshStats s = vdb_isosimp::eval::computeMeshStats(vdb_isosimp::eval::readMesh(d + "/ct.ply"));
+    ASSERT_GT(s.faces, 16u) << "the volume has no handles to keep";
+    vt::expectClosedOutward(vdb_isosimp::eval::readMesh(d + "/ct.ply"), false, "ct-int at its least faces");
+    const long long genus = 1 - s.eulerCharacteristic / 2;
+    const std::string note = std::to_string(s.faces) + " faces, not the 8 asked for: the surface has genus " + std::to_string(genus) +
+                             " or more (Euler characteristic " + std::to_string(s.eulerCharacteristic) + ")";
+    EXPECT_NE(r.err.find(note), std::string::npos) << r.err;
+    EXPECT_EQ(run(d, "ct.vdb --iso 100 -f 8 -q -o ct.ply").err, "");
+    const RunResult reached = run(d, "sphere.vdb -f 8 -o s.ply");
+    ASSERT_EQ(reached.code, 0) << reached.err;
+    EXPECT_EQ(reached.err.find("asked for"), std::string::npos) << reached.err;
+    EXPECT_EQ(std::count(reached.err.begin(), reached.err.end(), '\n'), 1) << reached.err;
 }
 
 // Issue 17: which grid a file is meshed by default, frame sequences and floater pruning.
