@@ -301,7 +301,7 @@ struct OutputChoices {
 // means a genus of at least 1 - chi/2, above 0 at least chi/2 closed pieces.
 void noteMissedTarget(const std::string& who, const Report& r)
 {
-    if (r.facesOut <= r.facesTarget + std::max<uint64_t>(2, r.facesTarget / 100)) return;
+    if (r.stoppedBy != "topology") return;
     const long long chi = (long long)r.vertsOut - (long long)(r.facesOut / 2);
     const std::string shape = chi <= 0 ? "genus " + std::to_string(1 - chi / 2) + " or more"
                                        : std::to_string((chi + 1) / 2) + " or more closed pieces";
@@ -381,7 +381,7 @@ int meshOne(const RunPaths& p, const Options& opt, const OutputChoices& out, Ter
                          input.c_str(), r.grid.c_str(), (unsigned long long)r.facesFull, (unsigned long long)r.facesOut, r.ratio,
                          (unsigned long long)r.vertsOut, r.seconds, r.peakRssMb,
                          levelPaths.empty() ? output.c_str() : levelPaths.back().c_str());
-        if (!quiet && !(opt.maxError > 0)) noteMissedTarget(who, r);  // under a bound, the bound may stop it
+        if (!quiet) noteMissedTarget(who, r);
         if (done) *done = r;
         return 0;
     } catch (const MemoryBudgetError& e) {

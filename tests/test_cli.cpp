@@ -231,32 +231,6 @@ TEST(Cli, HelpExplainsEveryOption)
         EXPECT_NE(help.find(opt), std::string::npos) << opt;
 }
 
-// A face target below what the surface's topology allows (the integer CT volume, voxels exactly at the
-// iso-value, is a sponge of many handles) is met as far as it can be, and the summary says why it
-// stops above it, with the genus the mesh's Euler characteristic gives; a reachable target says nothing.
-TEST(Cli, AnUnreachableFaceTargetSaysWhy)
-{
-    const auto d = freshDir("unreachable");
-    const vdb_isosimp::volumes::TestVolume ct = vdb_isosimp::volumes::makeVolume("ct-int", 64);
-    openvdb::io::File(d + "/ct.vdb").write({ct.grid});
-    sphere(d);
-    const RunResult r = run(d, "ct.vdb --iso 100 -f 8 -o ct.ply");
-    ASSERT_EQ(r.code, 0) << r.err;
-    const vdb_isosimp::Mesh least = vdb_isosimp::eval::readMesh(d + "/ct.ply");
-    const vdb_isosimp::eval::MeshStats s = vdb_isosimp::eval::computeMeshStats(least);
-    ASSERT_GT(s.faces, 16u) << "the volume has no handles to keep";
-    vt::expectClosedOutward(least, false, "ct-int at its least faces");
-    const long long genus = 1 - s.eulerCharacteristic / 2;
-    const std::string note = std::to_string(s.faces) + " faces, not the 8 asked for: the surface has genus " + std::to_string(genus) +
-                             " or more (Euler characteristic " + std::to_string(s.eulerCharacteristic) + ")";
-    EXPECT_NE(r.err.find(note), std::string::npos) << r.err;
-    EXPECT_EQ(run(d, "ct.vdb --iso 100 -f 8 -q -o ct.ply").err, "");
-    const RunResult reached = run(d, "sphere.vdb -f 8 -o s.ply");
-    ASSERT_EQ(reached.code, 0) << reached.err;
-    EXPECT_EQ(reached.err.find("asked for"), std::string::npos) << reached.err;
-    EXPECT_EQ(std::count(reached.err.begin(), reached.err.end(), '\n'), 1) << reached.err;
-}
-
 // Issue 17: which grid a file is meshed by default, frame sequences and floater pruning.
 namespace {
 
@@ -289,6 +263,49 @@ uint64_t reportInteger(const std::string& json, const std::string& key)
 {
     const auto at = json.find("\"" + key + "\": ");
     return at == std::string::npos ? UINT64_MAX : std::stoull(json.substr(at + key.size() + 4));
+}
+
+// What stopped the decimation, said in the report and, for a face target the surface's topology cannot
+// reach, in the summary: the integer CT volume (voxels exactly at the iso-value) is a sponge of many
+// handles, met as far as it can be, with the genus the mesh's Euler characteristic gives; a sphere reaches
+// the same target and says nothing; an error bound tighter than the target stops first and says nothing
+// beyond its report; a chain says it per level.
+TEST(Cli, WhatStoppedTheDecimationIsSaid)
+{
+    const auto d = freshDir("stopped_by");
+    const vdb_isosimp::volumes::TestVolume ct = vdb_isosimp::volumes::makeVolume("ct-int", 64);
+    openvdb::io::File(d + "/ct.vdb").write({ct.grid});
+    sphere(d);
+    const RunResult stuck = run(d, "ct.vdb --iso 100 -f 8 -o ct.ply --report ct.json");
+    ASSERT_EQ(stuck.code, 0) << stuck.err;
+    EXPECT_EQ(reportText(slurp(d + "/ct.json"), "stopped_by"), "topology");
+    const vdb_isosimp::Mesh least = vdb_isosimp::eval::readMesh(d + "/ct.ply");
+    const vdb_isosimp::eval::MeshStats s = vdb_isosimp::eval::computeMeshStats(least);
+    ASSERT_GT(s.faces, 16u) << "the volume has no handles to keep";
+    vt::expectClosedOutward(least, false, "ct-int at its least faces");
+    const long long genus = 1 - s.eulerCharacteristic / 2;
+    const std::string note = std::to_string(s.faces) + " faces, not the 8 asked for: the surface has genus " + std::to_string(genus) +
+                             " or more (Euler characteristic " + std::to_string(s.eulerCharacteristic) + ")";
+    EXPECT_NE(stuck.err.find(note), std::string::npos) << stuck.err;
+    EXPECT_EQ(run(d, "ct.vdb --iso 100 -f 8 -q -o ct.ply").err, "");
+
+    const RunResult reached = run(d, "sphere.vdb -f 8 -o s.ply --report s.json");
+    ASSERT_EQ(reached.code, 0) << reached.err;
+    EXPECT_EQ(reportText(slurp(d + "/s.json"), "stopped_by"), "target");
+    EXPECT_LE(reportInteger(slurp(d + "/s.json"), "faces_out"), 10u);
+    EXPECT_EQ(std::count(reached.err.begin(), reached.err.end(), '\n'), 1) << reached.err;
+
+    const RunResult bounded = run(d, "sphere.vdb -f 8 --max-error 0.05 -o b.ply --report b.json");
+    ASSERT_EQ(bounded.code, 0) << bounded.err;
+    EXPECT_EQ(reportText(slurp(d + "/b.json"), "stopped_by"), "error bound");
+    EXPECT_GT(reportInteger(slurp(d + "/b.json"), "faces_out"), 10u);
+    EXPECT_EQ(bounded.err.find("asked for"), std::string::npos) << bounded.err;
+
+    ASSERT_EQ(run(d, "ct.vdb --iso 100 --lods 0.5,0.0002 -q -o chain.ply --report chain.json").code, 0);
+    const std::string chain = slurp(d + "/chain.json");
+    EXPECT_EQ(reportText(chain, "lod0_stopped_by"), "target");
+    EXPECT_EQ(reportText(chain, "lod1_stopped_by"), "topology");
+    EXPECT_EQ(reportText(chain, "stopped_by"), "topology");
 }
 
 // A 5-frame sequence f.0001.vdb ... f.0005.vdb of fog spheres growing frame by frame.

@@ -145,6 +145,19 @@ std::string noiseFile()
 
 // Acceptance: R = 1 reproduces dense Marching Cubes on random sparse grids with tiles, leaf boundaries,
 // both grid classes, anisotropic rotated transforms and mirrored transforms.
+// The report's reason a decimation stopped: within 1 % of the face target (at least 2 faces: a closed
+// surface's count is even) it was met; above it, an error bound or else the topology kept it there.
+TEST(Pipeline, StopReasonNamesWhatKeptTheSurfaceAboveItsTarget)
+{
+    EXPECT_EQ(vdb_isosimp::stopReason(10, 8, false), "target");
+    EXPECT_EQ(vdb_isosimp::stopReason(11, 8, false), "topology");
+    EXPECT_EQ(vdb_isosimp::stopReason(1010, 1000, false), "target");
+    EXPECT_EQ(vdb_isosimp::stopReason(1011, 1000, false), "topology");
+    EXPECT_EQ(vdb_isosimp::stopReason(1011, 1000, true), "error bound");
+    EXPECT_EQ(vdb_isosimp::stopReason(900, 1000, true), "target");
+    EXPECT_EQ(vdb_isosimp::stopReason(778, 0, true), "error bound");  // a bound alone sets no face target
+}
+
 TEST(Pipeline, RatioOneEqualsDenseMarchingCubes)
 {
     int n = 0;

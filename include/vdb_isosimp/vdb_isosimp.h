@@ -117,7 +117,14 @@ struct LevelReport {
     uint64_t facesTarget = 0, facesOut = 0, vertsOut = 0;
     double maxErrorAccepted = 0.0;  // largest estimated displacement of a collapse up to this level
     double seconds = 0.0;           // time since the run started when the level was ready
+    std::string stoppedBy;          // as Report::stoppedBy, for this level
 };
+
+// Why a run's decimation stopped where it did, as Report::stoppedBy says it: "target" when the face
+// count is at most 1 % (or 2 faces) above the target, else "error bound" under Options::maxError (which
+// left the surface finer; alone it sets no face target), else "topology" (every collapse left would
+// change the surface's genus or fold faces over: a sponge of pores, a cloud of closed droplets).
+std::string stopReason(uint64_t facesOut, uint64_t facesTarget, bool errorBound);
 
 // What a run did; `--report` writes it as JSON.
 struct Report {
@@ -170,6 +177,9 @@ struct Report {
     double maxErrorAccepted = 0.0;
     std::vector<LevelReport> levels;  // Options::lods: one per level, finest first
     std::vector<DecimationRecord> trace;
+    // "target", "error bound" or "topology" (stopReason): whether the face count asked for was met,
+    // and if not, what kept the surface above it. A chain's is its last level's.
+    std::string stoppedBy;
 };
 
 // A level of a LOD chain, handed to Options::onLevel: valid only during the call.

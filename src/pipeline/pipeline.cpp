@@ -807,6 +807,7 @@ Result PipelineRun::finalPass()
     rep.secondsFinal = mClock.seconds() - finalStart;
     rep.facesOut = mResult.mesh.triangles.size();
     rep.vertsOut = mResult.mesh.points.size();
+    rep.stoppedBy = stopReason(rep.facesOut, rep.facesTarget, mOpt.maxError > 0);
     return rankReport();
 }
 

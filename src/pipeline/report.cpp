@@ -1,6 +1,15 @@
 #include "vdb_isosimp/vdb_isosimp.h"
 
+#include <algorithm>
+
 namespace vdb_isosimp {
+
+std::string stopReason(uint64_t facesOut, uint64_t facesTarget, bool errorBound)
+{
+    // A closed surface's face count is even, so a small odd target is missed by one.
+    if (facesTarget > 0 && facesOut <= facesTarget + std::max<uint64_t>(2, facesTarget / 100)) return "target";
+    return errorBound ? "error bound" : "topology";
+}
 
 std::vector<ReportField> reportFields(const Report& r, const Options& o)
 {
@@ -31,6 +40,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             integer("decimations", r.decimations),
             integer("max_intermediate_faces", r.maxIntermediateFaces),
             integer("max_uncontractible_faces", r.maxUncontractibleFaces),
+            text("stopped_by", r.stoppedBy),
             integer("components_dropped", r.componentsDropped),
             integer("components_pruned", r.componentsPruned),
             integer("queue_pops", r.queuePops),
@@ -67,6 +77,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
         fields.push_back(integer((p + "faces_target").c_str(), l.facesTarget));
         fields.push_back(integer((p + "faces_out").c_str(), l.facesOut));
         fields.push_back(integer((p + "verts_out").c_str(), l.vertsOut));
+        fields.push_back(text((p + "stopped_by").c_str(), l.stoppedBy));
         fields.push_back(real((p + "max_error_accepted").c_str(), l.maxErrorAccepted));
         fields.push_back(real((p + "seconds").c_str(), l.seconds));
     }
