@@ -794,9 +794,16 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         const V3 nNew = cross(sub(q[1], q[0]), sub(q[2], q[0]));
         const double edges = dot(sub(q[1], q[0]), sub(q[1], q[0])) + dot(sub(q[2], q[1]), sub(q[2], q[1])) +
                              dot(sub(q[0], q[2]), sub(q[0], q[2]));
-        const double lenNew = std::sqrt(dot(nNew, nNew));
+        const double n2New = dot(nNew, nNew);
         const V3& a = mGeom[fv[0]].p;
         const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
+        // Most faces keep their shape and turn little: decided on squares, without the square roots,
+        // where a relative margin of 1e-9 (far above their rounding) makes the answer the exact tests'.
+        const double minNew = kMinShape * edges, turn = dot(nOld, nNew);
+        if (n2New > minNew * minNew * (1 + 1e-9) && turn >= 0 &&
+            (mMinNormalCos <= 0 || turn * turn > mMinNormalCos * mMinNormalCos * dot(nOld, nOld) * n2New * (1 + 1e-9)))
+            continue;
+        const double lenNew = std::sqrt(n2New);
         const double lenOld = std::sqrt(dot(nOld, nOld));
         auto edgesOld = [&] {
             return dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
@@ -812,7 +819,7 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         // A face without area has no orientation to keep: the normal of vertices a rounding error apart
         // points anywhere, and comparing with it would refuse, at random, the moves that open a
         // zero-width neck (coincident vertices around a voxel at the iso-value on a small handle).
-        if (dot(nOld, nNew) < mMinNormalCos * lenOld * lenNew && lenOld > kDegenerateShape * edgesOld()) return false;
+        if (turn < mMinNormalCos * lenOld * lenNew && lenOld > kDegenerateShape * edgesOld()) return false;
     }
     return true;
 }
