@@ -95,9 +95,10 @@ public:
     // read apart from the others, such as one run of a sampled count, whose neighbours' leaves no
     // later block of the same reader would release. One thread at a time.
     virtual std::unique_ptr<CopyReader> privateCopyReader() const = 0;
-    // Pages between calls are what a few blocks' leaf reads faulted in; every 16 blocks keeps them to
-    // a few MB (more often, the other threads' TLB flushes cost time).
-    static constexpr size_t kTrimEveryBlocks = 16;
+    // Pages between calls are what some blocks' leaf reads faulted in; every 128 blocks keeps them to
+    // a few MB. Each call walks the page tables of the whole mapping and flushes the other threads'
+    // TLBs, so calling more often costs system time that grows with the file (docs/perf.md).
+    static constexpr size_t kTrimEveryBlocks = 128;
     // Delayed loading maps the input file; the pages read so far stay counted in the process's
     // resident memory although the voxels they held were decoded long ago. Drops those pages from
     // this process (they stay in the page cache and fault back in if read again), so resident memory
