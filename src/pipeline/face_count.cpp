@@ -46,9 +46,9 @@ FaceCount countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, 
                      size_t end, const Classifier& cls, const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = kCountRun;
-    // Per thread, twice extraction's interval: each trim flushes the other threads' TLBs, and the
-    // count does nothing else between reads.
-    constexpr size_t kTrimEveryBlocks = 2 * Volume::kTrimEveryBlocks;
+    // The input mapping is trimmed as each run is added (below), every 64 blocks a thread: no more often
+    // than extraction does it (each trim flushes the other threads' TLBs).
+    static_assert(kRun <= Volume::kTrimEveryBlocks, "a run's pages stay mapped until it is added");
     std::vector<std::pair<size_t, size_t>> mine;
     for (size_t r : plan.sampled)
         if (plan.all[r].first >= begin && plan.all[r].second <= end) mine.push_back(plan.all[r]);
@@ -67,10 +67,6 @@ FaceCount countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, 
         for (size_t i = first; i < last; ++i) {
             reader.sample(blocks[i], s);
             faces += countBlockTriangles(s, cls);
-            // The pages a run's leaf reads fault in (64 KB around each) would otherwise stay until the
-            // run is added, with several runs in flight: the count would be the peak of a run kept to
-            // a small output (docs/perf.md).
-            if ((i - first + 1) % kTrimEveryBlocks == 0) vol.trimInputMapping();
         }
         return std::make_pair(run, faces);
     };
