@@ -799,12 +799,12 @@ bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<
         const V3 nOld = cross(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[2]].p, a));
         // Most faces keep their shape and turn little: decided on squares, without the square roots,
         // where a relative margin of 1e-9 (far above their rounding) makes the answer the exact tests'.
-        const double minNew = kMinShape * edges, turn = dot(nOld, nNew);
+        const double minNew = kMinShape * edges, turn = dot(nOld, nNew), n2Old = dot(nOld, nOld);
         if (n2New > minNew * minNew * (1 + 1e-9) && turn >= 0 &&
-            (mMinNormalCos <= 0 || turn * turn > mMinNormalCos * mMinNormalCos * dot(nOld, nOld) * n2New * (1 + 1e-9)))
+            (mMinNormalCos <= 0 || turn * turn > mMinNormalCos * mMinNormalCos * n2Old * n2New * (1 + 1e-9)))
             continue;
         const double lenNew = std::sqrt(n2New);
-        const double lenOld = std::sqrt(dot(nOld, nOld));
+        const double lenOld = std::sqrt(n2Old);
         auto edgesOld = [&] {
             return dot(sub(mGeom[fv[1]].p, a), sub(mGeom[fv[1]].p, a)) +
                    dot(sub(mGeom[fv[2]].p, mGeom[fv[1]].p), sub(mGeom[fv[2]].p, mGeom[fv[1]].p)) +
