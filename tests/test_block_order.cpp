@@ -7,8 +7,10 @@
 #include <openvdb/tools/Dense.h>
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <random>
 #include <set>
 
@@ -69,6 +71,9 @@ TEST(BlockOrder, CoversEveryStraddlingCell)
         const std::vector<BlockOrigin> blocks = collectBlocks(grid->tree(), c);
         const std::set<BlockOrigin> listed(blocks.begin(), blocks.end());
         EXPECT_EQ(listed.size(), blocks.size()) << "duplicates, seed " << seed;
+        std::vector<BlockOrigin> oneThread;  // the leaves divide among threads: the list does not change
+        tbb::task_arena(1).execute([&] { oneThread = collectBlocks(grid->tree(), c); });
+        EXPECT_EQ(oneThread, blocks) << "seed " << seed;
 
         openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
         box.expand(9);
@@ -92,6 +97,33 @@ TEST(BlockOrder, CoversEveryStraddlingCell)
         EXPECT_GT(straddling, 0u) << "seed " << seed;
         EXPECT_EQ(missing, 0u) << "seed " << seed << ": straddling cells outside every listed block";
     }
+}
+
+// Listing the blocks reads the topology only: a grid read with delayed loading keeps every leaf's
+// voxels on disk (probing through a value accessor would load each leaf it caches).
+TEST(BlockOrder, ListingLoadsNoLeaf)
+{
+    vdb_isosimp::testing::GridSpec spec;
+    spec.seed = 4;
+    spec.levelSet = true;
+    const auto grid = vdb_isosimp::testing::randomSparseGrid(spec);
+    const std::string path = ::testing::TempDir() + "block_order_delayed.vdb";
+    openvdb::io::File(path).write({grid});
+    openvdb::io::File file(path);
+    file.setCopyMaxBytes(0);
+    file.open(/*delayLoad=*/true);
+    const auto read = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(grid->getName()));
+    ASSERT_TRUE(read);
+    Classifier c;
+    c.insideBelow = true;
+    c.iso = 0.0;
+    const std::vector<BlockOrigin> blocks = collectBlocks(read->tree(), c);
+    EXPECT_EQ(blocks, collectBlocks(grid->tree(), c));
+    size_t leaves = 0, loaded = 0;
+    for (auto leaf = read->tree().cbeginLeaf(); leaf; ++leaf, ++leaves) loaded += !leaf->buffer().isOutOfCore();
+    EXPECT_GT(leaves, 0u);
+    EXPECT_EQ(loaded, 0u) << "of " << leaves << " leaves";
+    std::remove(path.c_str());
 }
 
 // A tile's faces: one shell of blocks each, counted once where two tiles of one size meet.

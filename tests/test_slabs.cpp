@@ -4,6 +4,7 @@
 #include "pipeline/slabs.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <functional>
@@ -184,6 +185,40 @@ TEST(Slabs, TreeOrderIsMonotone)
         for (const Slab& s : cut)  // a slab is swept z, y, x
             ASSERT_TRUE(std::is_sorted(blocks.begin() + long(s.begin), blocks.begin() + long(s.end),
                                        [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); }));
+    }
+}
+
+// The halves of every node are arranged on threads of their own: the order, the nodes and each block's
+// place come out the same on one thread and on several, and the nodes are numbered in pre-order (a left
+// child follows its parent, every node but the root is the child of exactly one).
+TEST(Slabs, TreeOrderIsTheSameOnAnyNumberOfThreads)
+{
+    for (size_t slabs : {2, 7, 64, 300}) {
+        const std::vector<BlockOrigin> listed = randomBlocks(11, 20000, 40);
+        std::vector<BlockOrigin> one = listed, many = listed;
+        std::vector<uint32_t> placeOne, placeMany;
+        BlockOrder orderOne, orderMany;
+        tbb::task_arena(1).execute([&] { orderOne = arrangeBlocks(one, slabs, &placeOne); });
+        tbb::task_arena(4).execute([&] { orderMany = arrangeBlocks(many, slabs, &placeMany); });
+        EXPECT_EQ(one, many) << slabs << " slabs";
+        EXPECT_EQ(placeOne, placeMany) << slabs << " slabs";
+        ASSERT_EQ(orderOne.nodes.size(), 2 * slabs - 1);
+        ASSERT_EQ(orderMany.nodes.size(), orderOne.nodes.size());
+        std::vector<int> parents(orderOne.nodes.size(), 0);
+        for (size_t id = 0; id < orderOne.nodes.size(); ++id) {
+            const BlockOrder::Node &a = orderOne.nodes[id], &b = orderMany.nodes[id];
+            EXPECT_EQ(a.axis, b.axis);
+            EXPECT_EQ(a.boundary, b.boundary);
+            EXPECT_EQ(a.left, b.left);
+            EXPECT_EQ(a.right, b.right);
+            if (a.axis < 0) continue;
+            EXPECT_EQ(a.left, id + 1) << slabs << " slabs, node " << id;
+            ASSERT_LT(a.right, parents.size());
+            ++parents[a.left];
+            ++parents[a.right];
+        }
+        EXPECT_EQ(parents[0], 0);
+        for (size_t id = 1; id < parents.size(); ++id) EXPECT_EQ(parents[id], 1) << slabs << " slabs, node " << id;
     }
 }
 

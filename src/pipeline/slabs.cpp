@@ -4,6 +4,8 @@
 #include <cmath>
 #include <functional>
 
+#include <tbb/parallel_invoke.h>
+
 namespace vdb_isosimp {
 
 size_t slabCount(size_t blocks, uint64_t blocksPerSlab)
@@ -101,13 +103,14 @@ BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::ve
     std::vector<std::pair<BlockOrigin, uint32_t>> placed(n);
     for (size_t i = 0; i < n; ++i) placed[i] = {blocks[i], uint32_t(i)};
     const auto at = [&](size_t s) { return placed.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
-    const std::function<uint32_t(size_t, size_t)> build = [&](size_t l, size_t r) {
-        const uint32_t id = uint32_t(order.nodes.size());
-        order.nodes.emplace_back();
+    // Nodes are numbered in pre-order, so a subtree's numbers follow from its slab range alone: the two
+    // halves of every node are arranged at once, on as many threads as the run has (the millions of
+    // blocks of a large volume otherwise sort on one while every rank waits for its cut).
+    const std::function<void(size_t, size_t, uint32_t)> build = [&](size_t l, size_t r, uint32_t id) {
         const auto first = at(l), last = at(r);
         if (r - l < 2) {
             std::sort(first, last, [](const auto& a, const auto& b) { return lexBefore(a.first, b.first, 2); });
-            return id;
+            return;
         }
         BlockOrigin lo = first->first, hi = first->first;
         for (auto it = first; it != last; ++it)
@@ -120,12 +123,14 @@ BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::ve
             if (hi[size_t(k)] - lo[size_t(k)] > hi[size_t(axis)] - lo[size_t(axis)]) axis = k;
         const size_t m = mergeSplit(l, r);
         std::nth_element(first, at(m), last, [axis](const auto& a, const auto& b) { return lexBefore(a.first, b.first, axis); });
-        const BlockOrigin boundary = at(m)->first;
-        const uint32_t left = build(l, m), right = build(m, r);
-        order.nodes[id] = {axis, boundary, left, right};
-        return id;
+        const uint32_t left = id + 1, right = id + uint32_t(2 * (m - l));  // the left subtree has 2 (m - l) - 1 nodes
+        order.nodes[id] = {axis, at(m)->first, left, right};
+        tbb::parallel_invoke([&] { build(l, m, left); }, [&] { build(m, r, right); });
     };
-    if (slabs >= 2 && n >= 2) build(0, slabs);
+    if (slabs >= 2 && n >= 2) {
+        order.nodes.resize(2 * slabs - 1);
+        build(0, slabs, 0);
+    }
     if (sweepPlace) sweepPlace->resize(n);
     for (size_t j = 0; j < n; ++j) {
         blocks[j] = placed[j].first;

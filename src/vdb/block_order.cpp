@@ -5,6 +5,11 @@
 
 #include <openvdb/openvdb.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -13,7 +18,8 @@ namespace vdb_isosimp {
 
 void sortBlocks(std::vector<BlockOrigin>& blocks)
 {
-    std::sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
+    // A total order: the sorted list is the same on any number of threads.
+    tbb::parallel_sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
     blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
     // Collection pushes a block once per leaf or tile face that needs it: the duplicates' room would
     // otherwise stay reserved all run long.
@@ -75,22 +81,28 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
 {
     // Leaves: the leaf's own block and the 7 blocks whose upper corners sample it. Most of those 7 are
     // leaves themselves; only the others are added, so the list is never 8x the leaf count: it is
-    // built while the whole topology is in memory too.
-    std::vector<BlockOrigin> blocks;
-    blocks.reserve(tree.leafCount());
-    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
-        const openvdb::Coord o = leaf->origin();
-        checkRange(leaf->getNodeBoundingBox(), "leaf");
-        blocks.push_back({o.x(), o.y(), o.z()});
-    }
-    const size_t leaves = blocks.size();
-    for (size_t i = 0; i < leaves; ++i) {
-        const BlockOrigin o = blocks[i];
-        for (int d = 1; d < 8; ++d) {
-            const BlockOrigin low = samplingBlock(o, d);
-            if (!tree.probeConstLeaf(openvdb::Coord(low[0], low[1], low[2]))) blocks.push_back(low);
+    // built while the whole topology is in memory too. The leaves divide among threads (a large
+    // volume has millions); the list is sorted at the end, so the order they add blocks in is free. The
+    // tree is probed without an accessor: one caches a leaf's voxel buffer, which loads the leaf.
+    using LeafT = typename TreeT::LeafNodeType;
+    std::vector<const LeafT*> leaves;
+    leaves.reserve(tree.leafCount());
+    tree.getNodes(leaves);
+    std::vector<BlockOrigin> blocks(leaves.size());
+    tbb::enumerable_thread_specific<std::vector<BlockOrigin>> below;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<BlockOrigin>& mine = below.local();
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const openvdb::Coord o = leaves[i]->origin();
+            checkRange(leaves[i]->getNodeBoundingBox(), "leaf");
+            blocks[i] = {o.x(), o.y(), o.z()};
+            for (int d = 1; d < 8; ++d) {
+                const BlockOrigin low = samplingBlock(blocks[i], d);
+                if (!tree.probeConstLeaf(openvdb::Coord(low[0], low[1], low[2]))) mine.push_back(low);
+            }
         }
-    }
+    });
+    for (const std::vector<BlockOrigin>& mine : below) blocks.insert(blocks.end(), mine.begin(), mine.end());
     // Tiles: faces where the constant region across is on the other side of the iso-value.
     forEachTileShell(tree, c, [&](int axis, const openvdb::Coord& lo, const openvdb::Coord& size, int side) {
         const int u = (axis + 1) % 3, w = (axis + 2) % 3;
