@@ -392,6 +392,47 @@ INSTANTIATE_TEST_SUITE_P(DamagedVdb, LocatedDamage,
                                            Located{"none", openvdb::io::COMPRESS_NONE, openvdb::GRID_FOG_VOLUME, false}),
                          [](const ::testing::TestParamInfo<Located>& i) { return i.param.name; });
 
+// A grid of 40,000 leaves in a row along x, two voxels each: the walk takes its leaf records in runs
+// of at most 16,384 on all threads (from where the delayed-load metadata says each starts). A leaf damaged in
+// the last run is named as in a file walked one record after another, and the undamaged file meshes.
+openvdb::FloatGrid::Ptr rowGrid(int marked)
+{
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->setName("density");
+    auto acc = g->getAccessor();
+    for (int i = 0; i < 40000; ++i) {
+        acc.setValueOn(openvdb::Coord(8 * i + 3, 2, 5), i == marked ? 0.75f : 1.0f);
+        acc.setValueOn(openvdb::Coord(8 * i + 4, 2, 5), 0.25f + float(i % 7) / 8.0f);
+    }
+    return g;
+}
+
+TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
+{
+    const std::string d = scratch("located_runs");
+    const uint32_t compression = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
+    vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, compression);
+    vdb_samples::write(d + "/b.vdb", {rowGrid(35000)}, compression);
+    const std::string fa = slurp(d + "/a.vdb"), fb = slurp(d + "/b.vdb");
+    writeBytes(d + "/in.vdb", fa);
+    const Outcome clean = runLimited(d);
+    ASSERT_EQ(clean.code, 0) << clean.err;
+    std::remove((d + "/out.ply").c_str());
+
+    const size_t end = differingEnd(fa, fb);
+    ASSERT_GT(end, fa.size() / 2);
+    std::string bad = fa;
+    for (size_t k = end - 12; k < end; ++k) bad[k] = char(0xA5 ^ (k * 37));
+    writeBytes(d + "/in.vdb", bad);
+    const Outcome o = runLimited(d);
+    ASSERT_EQ(o.code, 1) << o.err;
+    EXPECT_EQ(badMessage(o.err), "") << o.err;
+    // Found by the walk, before OpenVDB reads the file: the chunk's header states a size that is not the leaf's.
+    EXPECT_EQ(o.err.rfind("vdb_isosimp: in.vdb: grid 'density', leaf [280000, 0, 0]: compressed data is damaged (blosc chunk", 0), 0u)
+        << o.err;
+    EXPECT_FALSE(exists(d + "/out.ply"));
+}
+
 // Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.
 TEST(DamagedVdb, WriteCorpus)
 {

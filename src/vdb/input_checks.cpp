@@ -7,6 +7,7 @@
 #include <openvdb/math/Transform.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +24,9 @@
 
 #include <openvdb/io/Compression.h>
 #include <openvdb/points/StreamCompression.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 namespace vdb_isosimp {
 
@@ -49,6 +53,7 @@ public:
     BoundedReader& operator=(const BoundedReader&) = delete;
 
     bool ok() const { return mFd >= 0; }
+    uint64_t size() const { return mSize; }
     uint64_t pos() const { return mPos; }
     uint64_t left() const { return mLimit > mPos ? mLimit - mPos : 0; }
     // Reads and skips stop at `limit` (a grid's end, its topology's end) until the next call.
@@ -590,10 +595,82 @@ struct TopologyWalk {
     }
 };
 
+// One leaf's record at `in`'s position (value mask, then the voxel values: walkValues) against the
+// topology's active count and the delayed-load metadata: empty when it is sound, else what is wrong.
+std::string walkLeaf(BoundedReader& in, size_t i, const VdbGridLayout& layout, uint32_t compression, bool half,
+                     uint64_t valueSize, const DelayedLoadSizes& delayed)
+{
+    uint64_t mask[8];
+    if (!in.bytes(mask, sizeof mask)) return "the grid's data ends early";
+    uint64_t active = 0;
+    for (uint64_t m : mask) active += uint64_t(__builtin_popcountll(m));
+    if (active != layout.leafActive[i]) return "its value mask differs from the topology's";
+    ValuesRecord rec;
+    const std::string why = walkValues(in, compression, half, valueSize, kLeafValues, active, rec);
+    if (!why.empty()) return why;
+    if (delayed.present) {
+        if ((compression & openvdb::io::COMPRESS_ACTIVE_MASK) && delayed.codes[i] != rec.code)
+            return "its code differs from the delayed-load metadata";
+        if ((compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP)) && rec.hasChunk &&
+            uint64_t(delayed.sizes[i]) != rec.chunkBytes)
+            return "its size differs from the delayed-load metadata";
+    }
+    return "";
+}
+
+// Where each leaf's record starts (and, last, where the records end), from the delayed-load metadata's
+// codes and chunk sizes: a record is its value mask, its code, what the code stores (inactive values, a
+// selection mask), then its chunk. Empty where the metadata cannot say: none, values not in chunks,
+// or half floats (an empty leaf of those stores no chunk).
+std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint64_t first, uint64_t end,
+                                 uint32_t compression, bool half, uint64_t valueSize)
+{
+    const bool maskCompressed = compression & openvdb::io::COMPRESS_ACTIVE_MASK;
+    if (!d.present || half || leaves == 0 || !(compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP)))
+        return {};
+    std::vector<uint64_t> at(leaves + 1);
+    at[0] = first;
+    for (size_t i = 0; i < leaves; ++i) {
+        const int8_t code = maskCompressed ? d.codes[i] : 6;
+        uint64_t stored = code == 2 || code == 4 ? valueSize : code == 5 ? 2 * valueSize : 0;
+        if (code == 3 || code == 4 || code == 5) stored += kLeafValues / 8;
+        if (d.sizes[i] < 8) return {};
+        at[i + 1] = at[i] + 64 + 1 + stored + uint64_t(d.sizes[i]);
+        if (at[i + 1] > end) return {};
+    }
+    return at;
+}
+
+// The leaf records walked in runs on all of the run's threads, each run by a reader of its own from
+// where `at` says it starts: true when every record is sound and starts where `at` says. On false the
+// records are walked again one after another, which finds the first fault and names it as always.
+bool walkLeavesAtOnce(const std::string& path, const BoundedReader& file, uint64_t end, const std::vector<uint64_t>& at,
+                      const VdbGridLayout& layout, uint32_t compression, bool half, uint64_t valueSize,
+                      const DelayedLoadSizes& delayed)
+{
+    constexpr size_t kRun = 16384;  // leaves a reader walks: a few MB of records
+    std::atomic<bool> sound{true};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, at.size() - 1, kRun), [&](const tbb::blocked_range<size_t>& r) {
+        if (!sound) return;
+        BoundedReader in(path, file.size());
+        in.setLimit(end);
+        if (!in.ok() || !in.seek(at[r.begin()])) {
+            sound = false;
+            return;
+        }
+        for (size_t i = r.begin(); i != r.end(); ++i)
+            if (in.pos() != at[i] || !walkLeaf(in, i, layout, compression, half, valueSize, delayed).empty()) {
+                sound = false;
+                return;
+            }
+        if (in.pos() != at[r.end()]) sound = false;
+    });
+    return sound;
+}
+
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
-// record: the topology node by node, then every leaf's record (value mask, then the voxel values:
-// walkValues) in the topology's leaf order. `e` gives where the topology must end and the grid must
-// end; a streamed entry learns them here.
+// record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
+// `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
               uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout)
 {
@@ -607,31 +684,27 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
                           std::to_string(e.blockPos));
 
     const size_t leaves = layout.leafOrigins.size();
-    const bool maskCompressed = compression & openvdb::io::COMPRESS_ACTIVE_MASK;
     const bool chunked = compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP);
     if (delayed.present && leaves > 0 &&
         (delayed.codes.size() != leaves || (chunked && delayed.sizes.size() != leaves)))
         damaged(path, "grid '" + name + "': delayed-load metadata lists " + std::to_string(delayed.codes.size()) +
                           " leaves, the topology has " + std::to_string(leaves));
+    const DelayedLoadSizes none;
+    const DelayedLoadSizes& sizes = delayed.present && leaves > 0 ? delayed : none;
     in.setLimit(e.endPos);
     if (!in.seek(e.blockPos)) damaged(path, "grid '" + name + "' ends early");
-    for (size_t i = 0; i < leaves; ++i) {
-        const auto leafError = [&](const std::string& why) {
-            throw InputError(path + ": grid '" + name + "', leaf " + coordText(layout.leafOrigins[i]) +
-                             ": compressed data is damaged (" + why + ")");
-        };
-        uint64_t mask[8];
-        if (!in.bytes(mask, sizeof mask)) leafError("the grid's data ends early");
-        uint64_t active = 0;
-        for (uint64_t m : mask) active += uint64_t(__builtin_popcountll(m));
-        if (active != layout.leafActive[i]) leafError("its value mask differs from the topology's");
-        ValuesRecord rec;
-        const std::string why = walkValues(in, compression, half, valueSize, kLeafValues, active, rec);
-        if (!why.empty()) leafError(why);
-        if (delayed.present && leaves > 0) {
-            if (maskCompressed && delayed.codes[i] != rec.code) leafError("its code differs from the delayed-load metadata");
-            if (chunked && rec.hasChunk && uint64_t(delayed.sizes[i]) != rec.chunkBytes)
-                leafError("its size differs from the delayed-load metadata");
+    // A file with offsets and delayed-load metadata (what OpenVDB writes) says where every record
+    // starts: its millions of leaves are walked on all threads, the way they are read later.
+    const std::vector<uint64_t> at = locate ? std::vector<uint64_t>{} : leafStarts(sizes, leaves, e.blockPos, e.endPos, compression, half, valueSize);
+    if (!at.empty() && at.back() == e.endPos &&
+        walkLeavesAtOnce(path, in, e.endPos, at, layout, compression, half, valueSize, sizes)) {
+        in.seek(e.endPos);
+    } else {
+        for (size_t i = 0; i < leaves; ++i) {
+            const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, sizes);
+            if (!why.empty())
+                throw InputError(path + ": grid '" + name + "', leaf " + coordText(layout.leafOrigins[i]) +
+                                 ": compressed data is damaged (" + why + ")");
         }
     }
     if (locate) e.endPos = in.pos();
