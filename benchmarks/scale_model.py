@@ -5,7 +5,10 @@ Input: the --report JSON of a single-process run (threads 1 gives clean per-node
 tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
 Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
   setup    : opening the file, the topology and the block list, the cut into slabs (seconds_open, _blocks,
-             _cut; and what no field times); every rank repeats it (serial). For
+             _cut; and what no field times); every rank repeats it (serial). The block list, the cut and the
+             walk of the file's leaf records (seconds_check, of seconds_open) run on all of a process's
+             threads: in the threads' model and the bound, all but their serial share (BLOCKS_SERIAL,
+             CUT_SERIAL, CHECK_SERIAL) is divided among the threads. For
              a face target, counting the faces: each rank counts its own slabs (divided by W). Laying
              out the leaves (seconds_layout): each rank its own slabs' (divided by W; the pass that
              deletes the other leaves, which every rank makes, is not in the model: not timed apart,
@@ -41,6 +44,12 @@ import sys
 
 BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
 MESSAGE_BYTES_PER_FACE = 100.0  # measured at 448^3: 94-114 bytes per output face of the subtree sent (docs/scale.md)
+# Shares of seconds_blocks, seconds_cut and seconds_check that one thread makes whatever the thread count
+# (Amdahl's serial share, 2 T2 / T1 - 1): from the 1024^3 gyroid's set-up at -j 1 and -j 2 (block list
+# 0.41 -> 0.29 s, cut 0.28 -> 0.175 s, check 0.55 -> 0.39 s: docs/scale.md).
+BLOCKS_SERIAL = 0.41
+CUT_SERIAL = 0.25
+CHECK_SERIAL = 0.42
 WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
 PATH_WORKERS = 16  # the width whose critical path is printed (the issue's target)
 
@@ -75,6 +84,8 @@ def model(report, wall, even=False):
     layout = report.get("seconds_layout", 0.0)  # each rank lays out its own slabs' leaves
     layout += report.get("seconds_samplers", 0.0)  # and counts which of its blocks read which leaf
     setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count - layout)
+    spread = (report.get("seconds_blocks", 0.0) * (1 - BLOCKS_SERIAL) + report.get("seconds_cut", 0.0) * (1 - CUT_SERIAL) +
+              report.get("seconds_check", 0.0) * (1 - CHECK_SERIAL))
 
     def serial(l, r):
         if r - l == 1:
@@ -99,10 +110,13 @@ def model(report, wall, even=False):
     rows = []
     for w in WORKERS:
         start = setup + (count + layout) / min(w, slabs)
+        threads_start = start - spread + spread / w
         ranks, ranks_path = parallel(0, slabs, 0, w)
         threads, threads_path = threads_tree(node, slabs, w)
         threads_final = final - scan + scan / w
-        t, tt, tb = start + ranks + final, start + threads + threads_final, start + schedule_bound(node, slabs, w) + threads_final
+        t = start + ranks + final
+        tt = threads_start + threads + threads_final
+        tb = threads_start + schedule_bound(node, slabs, w) + threads_final
         rows.append((w, t, one / t, tt, one / tt, tb, one / tb))
         if w == PATH_WORKERS:
             paths = ranks_path, threads_path
@@ -219,7 +233,7 @@ def main(argv):
         setup, tree, final, rows, critical, thread_path = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
               f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
-        pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
+        pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
         if pieces:
             print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")
         print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |")

@@ -202,6 +202,7 @@ void PipelineRun::openVolume(const VolumeOpener& open)
     mFlip = mInfo.indexToWorld.determinant() < 0;
     mSampled = {mInfo.background, mInfo.background};
     rep.secondsOpen = mClock.seconds() - start;
+    rep.secondsCheck = mInfo.checkSeconds;
 }
 
 void PipelineRun::chooseIso()

@@ -11,6 +11,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <chrono>
 #include <atomic>
 #include <cmath>
 #include <climits>
@@ -606,10 +607,12 @@ openvdb::GridBase::ConstPtr defaultGrid(const openvdb::GridPtrVec& metas)
 
 // What both entry points share once the grid is in hand: the info the pipeline needs, and the
 // checks that need the topology (never a voxel buffer).
-std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile)
+std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile,
+                                 double checkSeconds = 0.0)
 {
     VolumeInfo info;
     info.file = label;
+    info.checkSeconds = checkSeconds;
     info.gridName = grid->getName();
     info.valueType = grid->valueType();
     info.levelSet = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
@@ -729,7 +732,9 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     }
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
+    const auto checkStart = std::chrono::steady_clock::now();
     const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
+    const double checkSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - checkStart).count();
 
     openvdb::GridBase::Ptr grid;
     try {
@@ -750,7 +755,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
-    return wrapGrid(grid, path, /*fromFile=*/true);
+    return wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
 }
 
 std::unique_ptr<Volume> Volume::fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label)

@@ -31,6 +31,9 @@ struct VolumeInfo {
     uint64_t topologyBytes = 0;      // tree nodes without the voxel buffers
     uint64_t maxLeavesPerLayer = 0;  // leaves in the fullest z-layer of leaves
     uint64_t valueBytes = 4;         // sizeof(float) or sizeof(double)
+    // Of opening a file: the walk of its stored tree before OpenVDB reads it (checkVdbGridData),
+    // whose leaf records divide among threads.
+    double checkSeconds = 0.0;
 };
 
 class Volume {
