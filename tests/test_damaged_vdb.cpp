@@ -392,9 +392,9 @@ INSTANTIATE_TEST_SUITE_P(DamagedVdb, LocatedDamage,
                                            Located{"none", openvdb::io::COMPRESS_NONE, openvdb::GRID_FOG_VOLUME, false}),
                          [](const ::testing::TestParamInfo<Located>& i) { return i.param.name; });
 
-// A grid of 40,000 leaves in a row along x, two voxels each: the walk takes its leaf records in runs
-// of at most 16,384 on all threads (from where the delayed-load metadata says each starts). A leaf damaged in
-// the last run is named as in a file walked one record after another, and the undamaged file meshes.
+// A grid of 40,000 leaves in a row along x, two voxels each: the walk takes its leaf records in runs of
+// at most 16,384 on all threads (from where the delayed-load metadata says each starts). A leaf damaged
+// in the last run is named as in a file walked one record after another; the undamaged file meshes.
 openvdb::FloatGrid::Ptr rowGrid(int marked)
 {
     auto g = openvdb::FloatGrid::create(0.0f);

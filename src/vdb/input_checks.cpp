@@ -695,7 +695,8 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (!in.seek(e.blockPos)) damaged(path, "grid '" + name + "' ends early");
     // A file with offsets and delayed-load metadata (what OpenVDB writes) says where every record
     // starts: its millions of leaves are walked on all threads, the way they are read later.
-    const std::vector<uint64_t> at = locate ? std::vector<uint64_t>{} : leafStarts(sizes, leaves, e.blockPos, e.endPos, compression, half, valueSize);
+    const std::vector<uint64_t> at =
+        locate ? std::vector<uint64_t>{} : leafStarts(sizes, leaves, e.blockPos, e.endPos, compression, half, valueSize);
     if (!at.empty() && at.back() == e.endPos &&
         walkLeavesAtOnce(path, in, e.endPos, at, layout, compression, half, valueSize, sizes)) {
         in.seek(e.endPos);
