@@ -46,8 +46,8 @@ FaceCount countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, 
                      size_t end, const Classifier& cls, const std::function<bool(double)>& counted)
 {
     constexpr size_t kRun = kCountRun;
-    // The input mapping is trimmed as each run is added (below), every 64 blocks a thread: no more often
-    // than extraction does it (each trim flushes the other threads' TLBs).
+    // The input mapping is trimmed as each run is added (below), once per kCountRun blocks a thread: no
+    // more often than extraction does it (each trim flushes the other threads' TLBs).
     static_assert(kRun <= Volume::kTrimEveryBlocks, "a run's pages stay mapped until it is added");
     std::vector<std::pair<size_t, size_t>> mine;
     for (size_t r : plan.sampled)

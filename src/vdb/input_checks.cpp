@@ -216,6 +216,14 @@ struct ValuesRecord {
     bool hasChunk = false;
 };
 
+// What a node's value-compression code stores between the code and the values: one or two inactive
+// values (codes 2, 4 and 5), then a selection mask (codes 3, 4 and 5).
+uint64_t storedBeforeChunk(int8_t code, uint64_t valueSize, uint64_t nodeValues)
+{
+    const uint64_t inactive = code == 2 || code == 4 ? valueSize : code == 5 ? 2 * valueSize : 0;
+    return inactive + (code == 3 || code == 4 || code == 5 ? nodeValues / 8 : 0);
+}
+
 // `decompress`: also decompress the chunk (tile values of internal nodes). OpenVDB decompresses those
 // while it builds the topology, and a throw there leaks the root's child it was filling (the
 // root inserts a child only once it is read), besides leaving a partial tree.
@@ -226,12 +234,7 @@ std::string walkValues(BoundedReader& in, uint32_t compression, bool half, uint6
     if (!in.value(rec.code)) return "ends early";
     if (rec.code < 0 || rec.code > 6) return "unknown value-compression code " + std::to_string(int(rec.code));
     if (!maskCompressed && rec.code != 6) return "value-compression code " + std::to_string(int(rec.code)) + " without mask compression";
-    if (rec.code == 2 || rec.code == 4 || rec.code == 5) {
-        if (!in.skip(valueSize * (rec.code == 5 ? 2 : 1))) return "ends early";
-    }
-    if (rec.code == 3 || rec.code == 4 || rec.code == 5) {
-        if (!in.skip(nodeValues / 8)) return "ends early";
-    }
+    if (!in.skip(storedBeforeChunk(rec.code, valueSize, nodeValues))) return "ends early";
     const uint64_t count = maskCompressed && rec.code != 6 ? active : nodeValues;
     const uint64_t expected = count * (half ? 2 : valueSize);
     if (half && count == 0) return "";  // OpenVDB stores no half floats at all then
@@ -632,10 +635,8 @@ std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint6
     at[0] = first;
     for (size_t i = 0; i < leaves; ++i) {
         const int8_t code = maskCompressed ? d.codes[i] : 6;
-        uint64_t stored = code == 2 || code == 4 ? valueSize : code == 5 ? 2 * valueSize : 0;
-        if (code == 3 || code == 4 || code == 5) stored += kLeafValues / 8;
         if (d.sizes[i] < 8) return {};
-        at[i + 1] = at[i] + 64 + 1 + stored + uint64_t(d.sizes[i]);
+        at[i + 1] = at[i] + 64 + 1 + storedBeforeChunk(code, valueSize, kLeafValues) + uint64_t(d.sizes[i]);
         if (at[i + 1] > end) return {};
     }
     return at;
@@ -644,7 +645,7 @@ std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint6
 // The leaf records walked in runs on all of the run's threads, each run by a reader of its own from
 // where `at` says it starts: true when every record is sound and starts where `at` says. On false the
 // records are walked again one after another, which finds the first fault and names it as always.
-bool walkLeavesAtOnce(const std::string& path, const BoundedReader& file, uint64_t end, const std::vector<uint64_t>& at,
+bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, const std::vector<uint64_t>& at,
                       const VdbGridLayout& layout, uint32_t compression, bool half, uint64_t valueSize,
                       const DelayedLoadSizes& delayed)
 {
@@ -652,7 +653,7 @@ bool walkLeavesAtOnce(const std::string& path, const BoundedReader& file, uint64
     std::atomic<bool> sound{true};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, at.size() - 1, kRun), [&](const tbb::blocked_range<size_t>& r) {
         if (!sound) return;
-        BoundedReader in(path, file.size());
+        BoundedReader in(path, fileSize);
         in.setLimit(end);
         if (!in.ok() || !in.seek(at[r.begin()])) {
             sound = false;
@@ -689,20 +690,18 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
         (delayed.codes.size() != leaves || (chunked && delayed.sizes.size() != leaves)))
         damaged(path, "grid '" + name + "': delayed-load metadata lists " + std::to_string(delayed.codes.size()) +
                           " leaves, the topology has " + std::to_string(leaves));
-    const DelayedLoadSizes none;
-    const DelayedLoadSizes& sizes = delayed.present && leaves > 0 ? delayed : none;
     in.setLimit(e.endPos);
     if (!in.seek(e.blockPos)) damaged(path, "grid '" + name + "' ends early");
     // A file with offsets and delayed-load metadata (what OpenVDB writes) says where every record
     // starts: its millions of leaves are walked on all threads, the way they are read later.
     const std::vector<uint64_t> at =
-        locate ? std::vector<uint64_t>{} : leafStarts(sizes, leaves, e.blockPos, e.endPos, compression, half, valueSize);
+        locate ? std::vector<uint64_t>{} : leafStarts(delayed, leaves, e.blockPos, e.endPos, compression, half, valueSize);
     if (!at.empty() && at.back() == e.endPos &&
-        walkLeavesAtOnce(path, in, e.endPos, at, layout, compression, half, valueSize, sizes)) {
+        walkLeavesAtOnce(path, in.size(), e.endPos, at, layout, compression, half, valueSize, delayed)) {
         in.seek(e.endPos);
     } else {
         for (size_t i = 0; i < leaves; ++i) {
-            const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, sizes);
+            const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, delayed);
             if (!why.empty())
                 throw InputError(path + ": grid '" + name + "', leaf " + coordText(layout.leafOrigins[i]) +
                                  ": compressed data is damaged (" + why + ")");

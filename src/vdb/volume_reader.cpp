@@ -11,8 +11,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
-#include <chrono>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <climits>
 #include <cstdio>
