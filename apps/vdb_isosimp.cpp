@@ -301,7 +301,7 @@ struct OutputChoices {
 // means a genus of at least 1 - chi/2, above 0 at least chi/2 closed pieces.
 void noteMissedTarget(const std::string& who, const Report& r)
 {
-    if (r.stoppedBy != "topology") return;
+    if (r.stoppedBy != "topology" || r.facesTarget == 0) return;  // the bound alone asks for no count
     const long long chi = (long long)r.vertsOut - (long long)(r.facesOut / 2);
     const std::string shape = chi <= 0 ? "genus " + std::to_string(1 - chi / 2) + " or more"
                                        : std::to_string((chi + 1) / 2) + " or more closed pieces";

@@ -300,6 +300,18 @@ TEST(Cli, WhatStoppedTheDecimationIsSaid)
     EXPECT_EQ(reportText(slurp(d + "/b.json"), "stopped_by"), "error bound");
     EXPECT_GT(reportInteger(slurp(d + "/b.json"), "faces_out"), 10u);
     EXPECT_EQ(bounded.err.find("asked for"), std::string::npos) << bounded.err;
+    ASSERT_EQ(run(d, "sphere.vdb --max-error 0.05 -q -o b.ply --report b.json").code, 0);
+    EXPECT_EQ(reportText(slurp(d + "/b.json"), "stopped_by"), "error bound");
+
+    const RunResult loose = run(d, "ct.vdb --iso 100 -f 8 --max-error 1000 -o ct.ply --report ct.json");
+    ASSERT_EQ(loose.code, 0) << loose.err;
+    EXPECT_EQ(reportText(slurp(d + "/ct.json"), "stopped_by"), "topology");
+    EXPECT_NE(loose.err.find("faces, not the 8 asked for: the surface has"), std::string::npos) << loose.err;
+    const RunResult tetrahedron = run(d, "sphere.vdb --max-error 1000 -o s.ply --report s.json");
+    ASSERT_EQ(tetrahedron.code, 0) << tetrahedron.err;
+    EXPECT_EQ(reportText(slurp(d + "/s.json"), "stopped_by"), "topology");
+    EXPECT_EQ(reportInteger(slurp(d + "/s.json"), "faces_out"), 4u) << "a tetrahedron: the least closed surface";
+    EXPECT_EQ(tetrahedron.err.find("asked for"), std::string::npos) << tetrahedron.err;
 
     ASSERT_EQ(run(d, "ct.vdb --iso 100 --lods 0.5,0.0002 -q -o chain.ply --report chain.json").code, 0);
     const std::string chain = slurp(d + "/chain.json");

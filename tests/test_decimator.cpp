@@ -383,6 +383,29 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_EQ(home.points, travelled.points);
 }
 
+TEST(Decimator, APieceKeepsWhyItsPairsWereRefused)
+{
+    // Pairs the bound refused in a slab stay the bound's after a merge, in this process or through the
+    // bytes another process sends: the final pass reports what stopped it from them.
+    for (const bool throughBytes : {false, true}) {
+        std::array<BlockMesh, 2> halves = ellipsoidHalves();
+        Decimator upper, lower;
+        for (Decimator* d : {&upper, &lower}) d->setMaxError(1e-4);
+        upper.addBlock(halves[1]);
+        upper.decimateTo(0);
+        ASSERT_TRUE(upper.boundRefusesAnEdge());
+        SlabPiece piece{upper.takePiece(), 0, {}};
+        if (throughBytes) {
+            std::vector<char> bytes;
+            writePieceBytes(std::move(piece), bytes);
+            piece = readPieceBytes(bytes.data(), bytes.size());
+        }
+        EXPECT_FALSE(lower.boundRefusesAnEdge());
+        lower.absorb(std::move(piece.mesh));
+        EXPECT_TRUE(lower.boundRefusesAnEdge()) << (throughBytes ? "through bytes" : "in this process");
+    }
+}
+
 TEST(Decimator, AQueueThatForgetsItsColdEntriesMakesTheSameCollapses)
 {
     // A large queue drops the entries above the cost its pass reached and lists every edge again when
@@ -702,6 +725,7 @@ TEST(Decimator, ErrorBoundHoldsOnASphere)
         d.addBlock(ellipsoid(5, {1, 1, 1}, 10.0));
         d.decimateTo(0);
         EXPECT_LE(d.maxErrorAccepted(), e);
+        EXPECT_TRUE(d.boundRefusesAnEdge()) << "the bound, not the sphere's topology, keeps these faces; E = " << e;
         const Mesh m = d.mesh();
         EXPECT_GT(m.triangles.size(), previous) << "E = " << e;
         previous = m.triangles.size();
@@ -724,6 +748,26 @@ BlockMesh octahedron(std::array<double, 3> centre, int32_t firstKey)
     }
     b.triangles = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
     return b;
+}
+
+TEST(Decimator, ABoundThatRefusesNothingLeavesTheTopologyToSayWhy)
+{
+    // An octahedron under a bound far above its size goes down to the tetrahedron, where the link
+    // condition, not the bound, refuses every edge; under a bound below its first collapse's error,
+    // the bound refuses edges the topology allows.
+    for (const double bound : {1e9, 1e-6}) {
+        Decimator d;
+        d.setMaxError(bound);
+        d.addBlock(octahedron({0, 0, 0}, 0));
+        for (int pass = 0; pass < 4; ++pass) d.decimateTo(0);
+        if (bound > 1) {
+            EXPECT_EQ(d.faceCount(), 4u);
+            EXPECT_FALSE(d.boundRefusesAnEdge());
+        } else {
+            EXPECT_EQ(d.faceCount(), 8u);
+            EXPECT_TRUE(d.boundRefusesAnEdge());
+        }
+    }
 }
 
 TEST(Decimator, QueuedPairsWhoseSlotWentToANewVertexAreNeverCollapsed)

@@ -156,6 +156,7 @@ TEST(Pipeline, StopReasonNamesWhatKeptTheSurfaceAboveItsTarget)
     EXPECT_EQ(vdb_isosimp::stopReason(1011, 1000, true), "error bound");
     EXPECT_EQ(vdb_isosimp::stopReason(900, 1000, true), "target");
     EXPECT_EQ(vdb_isosimp::stopReason(778, 0, true), "error bound");  // a bound alone sets no face target
+    EXPECT_EQ(vdb_isosimp::stopReason(4, 0, false), "topology");      // ... and may leave the least surface
 }
 
 TEST(Pipeline, RatioOneEqualsDenseMarchingCubes)

@@ -447,7 +447,7 @@ public:
     template <typename F>
     void drainRefused(F f)
     {
-        for (const auto& r : mPiece.refused) f(r.a, r.b, r.folds);
+        for (const auto& r : mPiece.refused) f(r.a, r.b, r.why);
         mPiece.refused = {};
     }
     template <typename Ahead, typename F>
@@ -563,7 +563,7 @@ public:
     void drainRefused(F f)
     {
         for (const Refused& r : mDec.mRefused)
-            if (live(r)) f(mDense[r.a], mDense[r.b], r.folds != 0);
+            if (live(r)) f(mDense[r.a], mDense[r.b], Refusal(r.why));
         mDec.mRefused = {};
     }
     template <typename Ahead, typename F>
@@ -616,7 +616,7 @@ MeshPiece Decimator::takePiece()
         piece.queue.emplace_back() = {costBits, a, b, stale};
     });
     piece.refused.reserve(from.refusedCount());  // exactly: a doubling vector held up to twice the pairs
-    from.drainRefused([&](uint32_t a, uint32_t b, bool folds) { piece.refused.push_back({a, b, folds}); });
+    from.drainRefused([&](uint32_t a, uint32_t b, Refusal why) { piece.refused.push_back({a, b, why}); });
     piece.open = from.takeOpen();
     for (uint32_t i = 0; i < from.vertexCount(); ++i) {
         piece.vertices.emplace_back() = {from.position(i), from.quadric(i), from.final(i)};
@@ -744,9 +744,9 @@ void Decimator::absorbFrom(Source& from)
     // Refused pairs come along as unchanged: both ends are final, so every face around them is
     // already in the piece and the merge adds none (it welds open vertices only). Retrying them at
     // every node of the merge tree tried each closed tetrahedron of a noisy surface once per level.
-    from.drainRefused([&](uint32_t ra, uint32_t rb, bool folds) {
+    from.drainRefused([&](uint32_t ra, uint32_t rb, Refusal why) {
         const uint32_t a = std::min(remap[ra], remap[rb]), b = std::max(remap[ra], remap[rb]);
-        mRefused.emplace_back() = refusal(a, b, folds);
+        mRefused.emplace_back() = refusal(a, b, why);
     });
     const auto remapAhead = [&](const std::array<uint32_t, 3>& f) {
         for (uint32_t v : f) __builtin_prefetch(&remap[v]);
@@ -1075,7 +1075,7 @@ size_t Decimator::decimateTo(size_t targetFaces)
         // The queued cost bounds every placement's from below (of the geometry; an attribute's part
         // would not): past the error bound already, the pair waits without the topology checks.
         if (mMaxError < HUGE_VAL && !(mAttrWeight2 > 0) && displacement(a, b, c.cost()) > mMaxError) {
-            mRefused.emplace_back() = refusal(a, b, false);
+            mRefused.emplace_back() = refusal(a, b, Refusal::Bound);
             continue;
         }
         double cost;
@@ -1085,11 +1085,9 @@ size_t Decimator::decimateTo(size_t targetFaces)
             ++collapses;
             ++mWork.collapses;
             break;
-        case Outcome::Refused:
-        case Outcome::Folds:
-        case Outcome::TooFar:
-            mRefused.emplace_back() = refusal(a, b, outcome == Outcome::Folds);
-            break;
+        case Outcome::Refused: mRefused.emplace_back() = refusal(a, b, Refusal::Topology); break;
+        case Outcome::Folds: mRefused.emplace_back() = refusal(a, b, Refusal::Folds); break;
+        case Outcome::TooFar: mRefused.emplace_back() = refusal(a, b, Refusal::Bound); break;
         case Outcome::Costlier: pushAt(a, b, cost); break;
         }
     }
@@ -1407,7 +1405,17 @@ void Decimator::compactQueue()
 
 void Decimator::retryFolds()
 {
-    retryRefused([](const Refused& r) { return r.folds != 0; });
+    retryRefused([](const Refused& r) { return Refusal(r.why) == Refusal::Folds; });
+}
+
+bool Decimator::boundRefusesAnEdge()
+{
+    // A pair the bound turned away before its topology was looked at (decimateTo) is looked at now.
+    for (const Refused& r : mRefused) {
+        EdgeLink link;
+        if (Refusal(r.why) == Refusal::Bound && mMeta[r.a].alive && mMeta[r.b].alive && edgeMayCollapse(r.a, r.b, link)) return true;
+    }
+    return false;
 }
 
 void Decimator::requeueForgotten()

@@ -28,6 +28,10 @@
 
 namespace vdb_isosimp {
 
+// Why a collapse was refused: it would break the link condition (the surface's topology), every
+// placement would fold or degenerate a face, or it would move the surface by more than the error bound.
+enum class Refusal : uint8_t { Topology = 0, Folds = 1, Bound = 2 };
+
 // A decimator's mesh as a merge hands it on (Decimator::takePiece): alive vertices renumbered densely
 // in id order, faces in id order, the open vertices by edge key, and the queue and refused pairs
 // that name live vertices. absorb() reads nothing else of the other side, so absorbing a piece made
@@ -51,7 +55,7 @@ struct MeshPiece {
     // around them and they stay refused until their faces change, remembering why.
     struct Refused {
         uint32_t a, b;
-        bool folds;
+        Refusal why;
     };
     std::vector<Refused> refused;
     // Per vertex, only where the decimator keeps them: the drift under an error bound, and the
@@ -186,6 +190,10 @@ public:
     // Largest estimated displacement of a collapse made so far (same estimate; without a bound, the
     // quadric part only).
     double maxErrorAccepted() const { return mMaxErrorAccepted; }
+    // Whether some edge still there was refused by the error bound alone (its link condition allows
+    // the collapse): once the passes stop above their target, whether the bound held the surface
+    // there rather than its topology.
+    bool boundRefusesAnEdge();
 
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
@@ -372,20 +380,20 @@ private:
     size_t mForgetAbove = size_t(1) << 20;
     void requeueForgotten();
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
-    // the sum of both ends' ring counters at refusal (its low 31 bits: the record stays 12 bytes, and
+    // the sum of both ends' ring counters at refusal (its low 30 bits: the record stays 12 bytes, and
     // there can be hundreds of thousands at a merge), so a collapse that cannot succeed (a closed
     // tetrahedron in noisy data) is not tried again at every batch.
     struct Refused {
         uint32_t a, b;
-        uint32_t stamp : 31;
-        uint32_t folds : 1;  // refused for its placements' faces, not its topology (retryFolds)
+        uint32_t stamp : 30;
+        uint32_t why : 2;  // a Refusal: retryFolds retries the folds, boundRefusesAnEdge looks for the bound
     };
     static_assert(sizeof(Refused) == 12, "refused pairs stay 12 bytes");
-    Refused refusal(uint32_t a, uint32_t b, bool folds) const
+    Refused refusal(uint32_t a, uint32_t b, Refusal why) const
     {
-        return {a, b, (mMeta[a].ring + mMeta[b].ring) & 0x7fffffffu, folds};
+        return {a, b, (mMeta[a].ring + mMeta[b].ring) & 0x3fffffffu, uint32_t(why)};
     }
-    bool ringsChanged(const Refused& r) const { return refusal(r.a, r.b, false).stamp != r.stamp; }
+    bool ringsChanged(const Refused& r) const { return refusal(r.a, r.b, Refusal::Topology).stamp != r.stamp; }
     // In chunks of 12 KB: a merge appends its child's pairs and passes append more, and a doubling
     // std::vector would hold up to twice the pairs.
     ChunkedVector<Refused, 10> mRefused;

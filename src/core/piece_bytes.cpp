@@ -107,7 +107,7 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     for (const auto& r : m.refused) {
         w.put(r.a);
         w.put(r.b);
-        w.put(uint8_t(r.folds));
+        w.put(uint8_t(r.why));
     }
     w.put(uint64_t(m.drift.size()));
     for (size_t i = 0; i < m.drift.size(); ++i) w.put(m.drift[i]);
@@ -178,7 +178,9 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
     for (auto& x : m.refused) {
         x.a = r.get<uint32_t>();
         x.b = r.get<uint32_t>();
-        x.folds = r.get<uint8_t>() != 0;
+        const uint8_t why = r.get<uint8_t>();
+        if (why > uint8_t(Refusal::Bound)) throw std::runtime_error("merge tree piece: a refusal of no known kind");
+        x.why = Refusal(why);
         if (x.a >= vertices || x.b >= vertices) throw std::runtime_error("merge tree piece: a refused edge is missing");
     }
     const uint64_t drift = r.count(4);

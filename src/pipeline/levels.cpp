@@ -75,7 +75,7 @@ Mesh makeLevels(Levels& levels, Report& rep, const Options& o, const AttributeSa
         mesh.attributes = attributes.sample(mesh.points);
         level.facesOut = mesh.triangles.size();
         level.vertsOut = mesh.points.size();
-        level.stoppedBy = stopReason(level.facesOut, level.facesTarget, o.maxError > 0);
+        level.stoppedBy = stopReason(level.facesOut, level.facesTarget, whole.boundHeld());
         level.maxErrorAccepted = rep.maxErrorAccepted;
         level.seconds = clock.seconds();
         rep.levels.push_back(level);

@@ -808,7 +808,7 @@ Result PipelineRun::finalPass()
     rep.secondsFinal = mClock.seconds() - finalStart;
     rep.facesOut = mResult.mesh.triangles.size();
     rep.vertsOut = mResult.mesh.points.size();
-    rep.stoppedBy = stopReason(rep.facesOut, rep.facesTarget, mOpt.maxError > 0);
+    rep.stoppedBy = stopReason(rep.facesOut, rep.facesTarget, last.boundHeld());
     return rankReport();
 }
 

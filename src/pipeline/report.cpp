@@ -4,11 +4,11 @@
 
 namespace vdb_isosimp {
 
-std::string stopReason(uint64_t facesOut, uint64_t facesTarget, bool errorBound)
+std::string stopReason(uint64_t facesOut, uint64_t facesTarget, bool boundHeld)
 {
     // A closed surface's face count is even, so a small odd target is missed by one.
     if (facesTarget > 0 && facesOut <= facesTarget + std::max<uint64_t>(2, facesTarget / 100)) return "target";
-    return errorBound ? "error bound" : "topology";
+    return boundHeld ? "error bound" : "topology";
 }
 
 std::vector<ReportField> reportFields(const Report& r, const Options& o)
