@@ -122,9 +122,10 @@ struct LevelReport {
 
 // Why a run's decimation stopped where it did, as Report::stoppedBy says it: "target" when the face
 // count is at most 1 % (or 2 faces) above the target, else "error bound" when `boundHeld`: some edge
-// left was refused by Options::maxError alone (its topology allows the collapse; the bound alone sets
-// no face target), else "topology" (every collapse left would change the surface's genus or fold faces
-// over: a sponge of pores, a cloud of closed droplets, or a surface already as coarse as it can be).
+// left was refused by Options::maxError alone (its topology allows the collapse and a placement keeps
+// the faces valid; the bound alone sets no face target), else "topology" (every collapse left would
+// change the surface's genus or fold faces over: a sponge of pores, a cloud of closed droplets, or a
+// surface already as coarse as it can be).
 std::string stopReason(uint64_t facesOut, uint64_t facesTarget, bool boundHeld);
 
 // What a run did; `--report` writes it as JSON.

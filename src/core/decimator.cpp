@@ -1005,8 +1005,7 @@ Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, do
     // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
     Placement places[kPlacements];
     const size_t count = placements(a, b, places, false);
-    size_t place = 0;
-    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
+    const size_t place = firstValidPlacement(a, b, places, count);
     if (place == count) return Outcome::Folds;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
@@ -1410,12 +1409,24 @@ void Decimator::retryFolds()
 
 bool Decimator::boundRefusesAnEdge()
 {
-    // A pair the bound turned away before its topology was looked at (decimateTo) is looked at now.
+    // What collapse() checks before the cost and the bound, for each pair the bound turned away (some
+    // before their topology was looked at: decimateTo).
     for (const Refused& r : mRefused) {
+        if (Refusal(r.why) != Refusal::Bound || !mMeta[r.a].alive || !mMeta[r.b].alive) continue;
         EdgeLink link;
-        if (Refusal(r.why) == Refusal::Bound && mMeta[r.a].alive && mMeta[r.b].alive && edgeMayCollapse(r.a, r.b, link)) return true;
+        if (!edgeMayCollapse(r.a, r.b, link)) continue;
+        Placement places[kPlacements];
+        const size_t count = placements(r.a, r.b, places, false);
+        if (firstValidPlacement(r.a, r.b, places, count) < count) return true;
     }
     return false;
+}
+
+size_t Decimator::firstValidPlacement(uint32_t a, uint32_t b, const Placement places[kPlacements], size_t count) const
+{
+    size_t place = 0;
+    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
+    return place;
 }
 
 void Decimator::requeueForgotten()

@@ -191,8 +191,8 @@ public:
     // quadric part only).
     double maxErrorAccepted() const { return mMaxErrorAccepted; }
     // Whether some edge still there was refused by the error bound alone (its link condition allows
-    // the collapse): once the passes stop above their target, whether the bound held the surface
-    // there rather than its topology.
+    // the collapse and a placement keeps every face valid): once the passes stop above their target,
+    // whether the bound held the surface there rather than its topology.
     bool boundRefusesAnEdge();
 
     // Polled every few thousand queue pops during decimateTo(); returning true stops the run by
@@ -358,6 +358,9 @@ private:
     std::vector<Component> componentsByArea() const;
     void dropComponent(const Component& c);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
+    // The cheapest of `count` placements of edge ab (placements()) that keeps every face around both
+    // ends valid: its index, or `count` when every one folds or degenerates a face.
+    size_t firstValidPlacement(uint32_t a, uint32_t b, const Placement places[kPlacements], size_t count) const;
     template <typename VerticesRead, typename FacesRead>
     Mesh collectMesh(VerticesRead verticesRead, FacesRead facesRead) const;
 
