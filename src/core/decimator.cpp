@@ -999,14 +999,13 @@ double Decimator::fanDistance(uint32_t a, uint32_t b, const V3& p, double limit)
 Decimator::Outcome Decimator::collapse(uint32_t a, uint32_t b, float maxCost, double* cost)
 {
     EdgeLink e;
-    if (!edgeMayCollapse(a, b, e)) return Outcome::Refused;
+    Placement places[kPlacements];
+    size_t place = 0;
+    const Outcome allowed = placeCollapse(a, b, e, places, &place);
+    if (allowed != Outcome::Collapsed) return allowed;
     // The cheapest placement that keeps every face valid. Its cost, not the bound the pair was queued
     // with, decides: a fallback far costlier than the optimum goes back to the queue at its own cost
     // (collapsing it now let triangles swing across sharp edges at the price of a flat collapse).
-    Placement places[kPlacements];
-    const size_t count = placements(a, b, places, false);
-    const size_t place = firstValidPlacement(a, b, places, count);
-    if (place == count) return Outcome::Folds;
     if (cost) *cost = places[place].cost;
     if (float(places[place].cost) > maxCost) return Outcome::Costlier;
     double moved = displacement(a, b, places[place].geoCost);
@@ -1409,24 +1408,26 @@ void Decimator::retryFolds()
 
 bool Decimator::boundRefusesAnEdge()
 {
-    // What collapse() checks before the cost and the bound, for each pair the bound turned away (some
-    // before their topology was looked at: decimateTo).
+    // Some pairs the bound turned away before their topology was looked at (decimateTo).
     for (const Refused& r : mRefused) {
         if (Refusal(r.why) != Refusal::Bound || !mMeta[r.a].alive || !mMeta[r.b].alive) continue;
-        EdgeLink link;
-        if (!edgeMayCollapse(r.a, r.b, link)) continue;
+        EdgeLink e;
         Placement places[kPlacements];
-        const size_t count = placements(r.a, r.b, places, false);
-        if (firstValidPlacement(r.a, r.b, places, count) < count) return true;
+        size_t place = 0;
+        if (placeCollapse(r.a, r.b, e, places, &place) == Outcome::Collapsed) return true;
     }
     return false;
 }
 
-size_t Decimator::firstValidPlacement(uint32_t a, uint32_t b, const Placement places[kPlacements], size_t count) const
+Decimator::Outcome Decimator::placeCollapse(uint32_t a, uint32_t b, EdgeLink& e, Placement places[kPlacements], size_t* place)
 {
-    size_t place = 0;
-    while (place < count && !(facesStayValid(a, b, places[place].p) && facesStayValid(b, a, places[place].p))) ++place;
-    return place;
+    if (!edgeMayCollapse(a, b, e)) return Outcome::Refused;
+    const size_t count = placements(a, b, places, false);
+    size_t p = 0;
+    while (p < count && !(facesStayValid(a, b, places[p].p) && facesStayValid(b, a, places[p].p))) ++p;
+    if (p == count) return Outcome::Folds;
+    *place = p;
+    return Outcome::Collapsed;
 }
 
 void Decimator::requeueForgotten()

@@ -358,9 +358,11 @@ private:
     std::vector<Component> componentsByArea() const;
     void dropComponent(const Component& c);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
-    // The cheapest of `count` placements of edge ab (placements()) that keeps every face around both
-    // ends valid: its index, or `count` when every one folds or degenerates a face.
-    size_t firstValidPlacement(uint32_t a, uint32_t b, const Placement places[kPlacements], size_t count) const;
+    // What collapse() checks of ab before cost and bound: Refused when the link condition forbids it
+    // (edgeMayCollapse fills `e`), Folds when none of its placements (filled in `places`, cheapest
+    // first) keeps every face valid, else Collapsed: nothing here forbids it, and `*place` is the
+    // cheapest valid placement.
+    Outcome placeCollapse(uint32_t a, uint32_t b, EdgeLink& e, Placement places[kPlacements], size_t* place);
     template <typename VerticesRead, typename FacesRead>
     Mesh collectMesh(VerticesRead verticesRead, FacesRead facesRead) const;
 
