@@ -1,9 +1,9 @@
 #include "core/decimator.h"
 
+#include "core/stopwatch.h"
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -1258,7 +1258,7 @@ size_t Decimator::removeDegenerateFaces()
     // face kScanAhead places on start loading while this one is checked (docs/perf.md).
     constexpr uint32_t kScanAhead = 16;
     std::vector<uint8_t> flat(mFaces.size(), 0);
-    const auto scanStart = std::chrono::steady_clock::now();
+    const Stopwatch scan;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
         for (uint32_t f = r.begin(); f != r.end(); ++f) {
             if (r.end() - f > kScanAhead && mFaces[f + kScanAhead].alive())
@@ -1266,7 +1266,7 @@ size_t Decimator::removeDegenerateFaces()
             flat[f] = mFaces[f].alive() && degenerate(f);
         }
     });
-    mParallelSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - scanStart).count();
+    mParallelSeconds += scan.seconds();
     std::vector<uint32_t> candidates;
     for (uint32_t f = 0; f < flat.size(); ++f)
         if (flat[f]) candidates.push_back(f);
@@ -1522,14 +1522,14 @@ Mesh Decimator::takeMesh()
     mFreeFaces = {};
     mDrift = {};
     mAttrQ = {};
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch collection;
     Mesh m = collectMesh(
         [this](size_t v) {
             mGeom.releaseThrough(v);
             mMeta.releaseThrough(v);
         },
         [this](size_t i) { mFaces.releaseThrough(i); });
-    const double parallel = mParallelSeconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double parallel = mParallelSeconds + collection.seconds();
     *this = Decimator{};
     mParallelSeconds = parallel;
     return m;

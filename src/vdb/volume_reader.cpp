@@ -1,5 +1,6 @@
 #include "vdb/volume_reader.h"
 
+#include "core/stopwatch.h"
 #include "vdb/block_order.h"
 #include "vdb/input_checks.h"
 #include "vdb_isosimp/errors.h"
@@ -12,7 +13,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <climits>
 #include <cstdio>
@@ -732,9 +732,9 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     }
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
-    const auto checkStart = std::chrono::steady_clock::now();
+    const Stopwatch check;
     const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
-    const double checkSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - checkStart).count();
+    const double checkSeconds = check.seconds();
 
     openvdb::GridBase::Ptr grid;
     try {
