@@ -28,12 +28,17 @@ on; a thread whose node waits for its sibling takes the next slab. The set-up ru
 layout divided among the threads), then the final pass and the write. The node seconds of a `-j 1` run carry
 no contention between threads (memory bandwidth, allocator): compare the model at 2 threads with the wall of
 a measured `-j 2` run.
+Ranks of RANK_THREADS threads (W / RANK_THREADS ranks, as mpirun runs one rank a machine): the ranks split the tree
+as above; each rank's subtree runs as the threads' model runs a whole tree, on its own threads, after a set-up
+whose threaded parts and a final pass whose scan and collection divide among those threads. Below RANK_THREADS
+workers it is one process, the threads' model.
 Bound: no schedule of the same node seconds on W workers ends the tree sooner than every node but the root
 spread evenly over the workers and then the root, nor sooner than its longest chain (a slab and the joins
 above it), nor sooner than every slab spread evenly and then the joins above the last slab to finish (at
 least the cheapest such path): what a better schedule could still gain, and what only cheaper (or parallel)
 joins can.
-Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound) and the critical path at 16 workers,
+Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound, ranks of RANK_THREADS threads) and
+the critical paths at 16 workers,
 the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
 and writes an SVG plot.
 Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
@@ -51,6 +56,7 @@ BLOCKS_SERIAL = 0.41
 CUT_SERIAL = 0.25
 CHECK_SERIAL = 0.42
 WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
+RANK_THREADS = 8  # threads of each rank in the mixed schedule: ranks of one machine's cores each
 PATH_WORKERS = 16  # the width whose critical path is printed (the issue's target)
 
 
@@ -93,16 +99,20 @@ def model(report, wall, even=False):
         m = merge_split(l, r)
         return serial(l, m) + serial(m, r) + node[(l, r)]
 
-    def parallel(l, r, a, b):
-        # Seconds of node [l, r) on ranks [a, b), and its critical path: the subtree one rank makes
-        # alone, then the joins above it.
+    def parallel(l, r, a, b, threads=1):
+        # Seconds of node [l, r) on ranks [a, b) of `threads` threads each, and its critical path: the
+        # subtree one rank makes alone (one node after another, or on its threads as one process does),
+        # then the joins above it.
         if b - a < 2 or r - l < 2:
+            if threads > 1:
+                alone, path = threads_tree(node, r, threads, first=l)
+                return alone, [f"one rank's slabs [{l}, {r}) on {threads} threads {alone:.2f} s"]
             alone = serial(l, r)
             return alone, [f"one rank's slabs [{l}, {r}) {alone:.2f} s"]
         m = merge_split(l, r)
         c = split_ranks(l, r, a, b)
         transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
-        (left, left_path), (right, right_path) = parallel(l, m, a, c), parallel(m, r, c, b)
+        (left, left_path), (right, right_path) = parallel(l, m, a, c, threads), parallel(m, r, c, b, threads)
         seconds, below = (left, left_path) if left >= right + transfer else (right + transfer, right_path)
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
 
@@ -117,10 +127,15 @@ def model(report, wall, even=False):
         t = start + ranks + final
         tt = threads_start + threads + threads_final
         tb = threads_start + schedule_bound(node, slabs, w) + threads_final
-        rows.append((w, t, one / t, tt, one / tt, tb, one / tb))
+        # Ranks of RANK_THREADS threads (fewer workers: one process): the set-up's threaded parts and
+        # the final pass's on a rank's threads, each rank's subtree as one process runs it.
+        per = min(w, RANK_THREADS)
+        hybrid_tree, hybrid_path = parallel(0, slabs, 0, w // per, per)
+        th = start - spread + spread / per + hybrid_tree + final - scan + scan / per
+        rows.append((w, t, one / t, tt, one / tt, tb, one / tb, th, one / th))
         if w == PATH_WORKERS:
-            paths = ranks_path, threads_path
-    return setup + count + layout, serial(0, slabs), final, rows, paths[0], paths[1]
+            paths = ranks_path, threads_path, hybrid_path
+    return setup + count + layout, serial(0, slabs), final, rows, paths
 
 
 def schedule_bound(node, slabs, workers):
@@ -142,10 +157,12 @@ def schedule_bound(node, slabs, workers):
     return max(rest / workers + root, chain(0, slabs, False), slab_work / workers + chain(0, slabs, True))
 
 
-def threads_tree(node, slabs, workers):
+def threads_tree(node, slabs, workers, first=0):
     """Seconds from the first slab's start to the root's end with `workers` threads (see the docstring),
     and the critical path: the last slab to finish a node that then climbed to the root, and the joins
-    on its way."""
+    on its way. The subtree [first, slabs) of the tree alone when `first` is given (a rank's share)."""
+    if slabs - first == 1:
+        return node[(first, slabs)], [f"slab {first} 0.00-{node[(first, slabs)]:.2f} s"]
     parent = {}
 
     def build(l, r):
@@ -156,20 +173,20 @@ def threads_tree(node, slabs, workers):
         build(l, m)
         build(m, r)
 
-    build(0, slabs)
+    build(first, slabs)
     done = {}
     events = []  # (time, node, path): a node finishes on the thread that made it
-    nxt = 0
+    nxt = first
 
     def start(t, si):
         heapq.heappush(events, (t + node[(si, si + 1)], (si, si + 1), [f"slab {si} {t:.2f}-{t + node[(si, si + 1)]:.2f} s"]))
 
-    for _ in range(min(workers, slabs)):
+    for _ in range(min(workers, slabs - first)):
         start(0.0, nxt)
         nxt += 1
     while events:
         t, (l, r), path = heapq.heappop(events)
-        if (l, r) == (0, slabs):
+        if (l, r) == (first, slabs):
             return t, path
         p = parent[(l, r)]
         m = merge_split(*p)
@@ -230,17 +247,19 @@ def main(argv):
     for i in range(1, len(argv) - 1, 3):
         report = json.load(open(argv[i]))
         wall, label = float(argv[i + 1]), argv[i + 2]
-        setup, tree, final, rows, critical, thread_path = model(report, wall)
+        setup, tree, final, rows, (critical, thread_path, hybrid_path) = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
               f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
         pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
         if pieces:
             print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")
-        print("| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |")
-        print("|---|---|---|---|---|---|---|")
-        for w, t, s, tt, ts, tb, bs in rows:
-            print(f"| {w} | {t:.2f} | {s:.1f}x | {tt:.2f} | {ts:.1f}x | {tb:.2f} | {bs:.1f}x |")
+        print(f"| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |"
+              f" ranks of {RANK_THREADS} threads: seconds | speed-up |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for w, t, s, tt, ts, tb, bs, th, hs in rows:
+            print(f"| {w} | {t:.2f} | {s:.1f}x | {tt:.2f} | {ts:.1f}x | {tb:.2f} | {bs:.1f}x | {th:.2f} | {hs:.1f}x |")
         print(f"critical path at {PATH_WORKERS} ranks: " + ", then ".join(critical))
+        print(f"critical path at {PATH_WORKERS} workers as ranks of {RANK_THREADS} threads: " + ", then ".join(hybrid_path))
         print(f"critical path at {PATH_WORKERS} threads (after the set-up): " + ", then ".join(thread_path))
         even = {row[0]: row for row in model(report, wall, even=True)[3]}
         print("slabs of equal work instead (each the mean of the measured slabs), ranks / threads: " +
