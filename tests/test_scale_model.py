@@ -92,7 +92,7 @@ class RankModel(unittest.TestCase):
     def test_two_ranks(self):
         # Rank 0: slabs 0, 1 and [0, 2) = 4.5 s; rank 1: 2.5 s plus its transfer (no faces: 0); root 0.5.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
-        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         self.assertAlmostEqual(tree, 7.5)
         self.assertAlmostEqual(final, 0.75)
         by_workers = {row[0]: row for row in rows}
@@ -107,7 +107,7 @@ class RankModel(unittest.TestCase):
         # threads make it 0.1 s, four 0.05 s; ranks of one thread pay it whole, and one worker is the serial run either way.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
         rep["seconds_final_parallel"] = 0.2
-        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         by_workers = {row[0]: row for row in rows}
         self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
         self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final - 0.1)
@@ -115,6 +115,30 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[4][3], setup + scale_model.threads_tree(nodes_of(rep), 4, 4)[0] + final - 0.15)
         self.assertAlmostEqual(by_workers[1][2], 1.0)
         self.assertAlmostEqual(by_workers[1][4], 1.0)
+
+
+class MixedModel(unittest.TestCase):
+    def test_a_subtree_on_threads(self):
+        # Slabs [2, 4) alone on two threads: both slabs at once (1 s), then [2, 4) (0.5 s).
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 4, 2, first=2)[0], 1.5)
+        self.assertAlmostEqual(scale_model.threads_tree(nodes_of(rep), 1, 2, first=0)[0], 3.0)  # one slab
+
+    def test_two_ranks_of_two_threads(self):
+        # Four workers as two ranks of two threads: rank 0 makes slabs 0 (3 s) and 1 at once, then
+        # [0, 2): 3.5 s; rank 1 [2, 4) in 1.5 s; the root 0.5 s: 4.0 s of tree. A quarter of the
+        # final pass's 0.2 s parallel part is left on each rank's two threads: 0.1 s of it.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        rep["seconds_final_parallel"] = 0.2
+        saved = scale_model.RANK_THREADS
+        scale_model.RANK_THREADS = 2
+        try:
+            setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        finally:
+            scale_model.RANK_THREADS = saved
+        by_workers = {row[0]: row for row in rows}
+        self.assertAlmostEqual(by_workers[4][7], setup + 4.0 + final - 0.1)
+        self.assertAlmostEqual(by_workers[2][7], by_workers[2][3])  # fewer workers: one process of threads
 
 
 if __name__ == "__main__":
