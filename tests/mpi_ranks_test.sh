@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Distributed runs (mpirun -np N vdb_isosimp): the same bytes as one process for 1, 2 and 4 ranks and
-# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf that one
-# rank reads, a killed rank) ends the run non-zero with one line of ours and no output file.
+# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf record in
+# one rank's part of the walk, a killed rank) ends the run non-zero with one line of ours and no output file.
 # Usage: mpi_ranks_test.sh BUILD_DIR
 set -euo pipefail
 B=$1
@@ -79,22 +79,30 @@ mpirun -np 2 "$B/vdb_isosimp" "$W/v.vdb" --lods 0.2,0.05 --slab-blocks 512 --thr
 for f in r_one_lod0.ply r_one_lod1.ply; do cmp "$W/$f" "$W/${f/one/two}" || fail "chain, larger slabs: 2 ranks wrote other bytes ($f)"; done
 echo "--lods 0.2,0.05 --slab-blocks 512: 2 ranks, same bytes as one process"
 
-# Damaged voxels that only the last rank reads (the leaf at z = 96 of 112; rank 0 reads z < 72): the
-# error travels up the tree to rank 0, which alone reports it.
-cp "$W/v.vdb" "$W/bad.vdb"
-size=$(stat -c %s "$W/bad.vdb")
-head -c 4000 /dev/zero | tr '\0' 'Z' | dd of="$W/bad.vdb" bs=1 seek=$((size * 60 / 100)) conv=notrunc status=none
-for N in 2 4; do
+# Damaged leaf records (at a quarter and at 60 % of the file; the leaf at z = 96 of 112 only the last
+# rank reads): each rank walks its part of the records before OpenVDB reads the tree, and the one that
+# finds the damage has every rank walk all of them, so the run ends with the line one process prints.
+for pct in 25 60; do
+  cp "$W/v.vdb" "$W/bad.vdb"
+  size=$(stat -c %s "$W/bad.vdb")
+  head -c 4000 /dev/zero | tr '\0' 'Z' | dd of="$W/bad.vdb" bs=1 seek=$((size * pct / 100)) conv=notrunc status=none
   set +e
-  mpirun -np $N "$B/vdb_isosimp" "$W/bad.vdb" --ratio 0.05 --slab-blocks 64 -q -o "$W/bad.ply" 2> "$W/bad.err"
-  code=$?
+  "$B/vdb_isosimp" "$W/bad.vdb" --ratio 0.05 --slab-blocks 64 -q -o "$W/bad.ply" 2> "$W/one.err"
   set -e
-  [ $code -ne 0 ] || fail "damaged file: exit 0"
-  ours=$(grep -c '^vdb_isosimp: ' "$W/bad.err" || true)
-  [ "$ours" = 1 ] || { cat "$W/bad.err"; fail "damaged file, $N ranks: $ours lines of ours, not 1"; }
-  grep '^vdb_isosimp: ' "$W/bad.err" | grep -q "bad.vdb.*leaf \[64, 16, 96\]" || fail "damaged file: the line does not name the file and leaf"
-  ls "$W"/bad.ply* > /dev/null 2>&1 && fail "damaged file: output left behind"
-  echo "damaged file, $N ranks: exit $code, one line: $(grep '^vdb_isosimp: ' "$W/bad.err")"
+  one=$(grep '^vdb_isosimp: ' "$W/one.err")
+  [ $pct != 60 ] || echo "$one" | grep -q "bad.vdb.*leaf \[64, 16, 96\]" || fail "damaged file: the line does not name the file and leaf"
+  for N in 2 4; do
+    set +e
+    mpirun -np $N "$B/vdb_isosimp" "$W/bad.vdb" --ratio 0.05 --slab-blocks 64 -q -o "$W/bad.ply" 2> "$W/bad.err"
+    code=$?
+    set -e
+    [ $code -ne 0 ] || fail "damaged file: exit 0"
+    ours=$(grep -c '^vdb_isosimp: ' "$W/bad.err" || true)
+    [ "$ours" = 1 ] || { cat "$W/bad.err"; fail "damaged file, $N ranks: $ours lines of ours, not 1"; }
+    [ "$(grep '^vdb_isosimp: ' "$W/bad.err")" = "$one" ] || fail "damaged file at $pct %, $N ranks: not the line of one process ($one)"
+    ls "$W"/bad.ply* > /dev/null 2>&1 && fail "damaged file: output left behind"
+    echo "damaged file at $pct %, $N ranks: exit $code, one line: $(grep '^vdb_isosimp: ' "$W/bad.err")"
+  done
 done
 
 # A missing file on every rank: one line, not one per rank.

@@ -9,6 +9,8 @@
 // states fails instead of swapping the machine) and a time limit.
 // Located damage: the leaf a damaged chunk belongs to is found independently of the reader, as the
 // bytes where two files differ that differ only in that leaf's voxels; the message must name it.
+#include "vdb/input_checks.h"
+#include "vdb/volume_reader.h"
 #include "vdb_isosimp/errors.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
@@ -431,6 +433,102 @@ TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
     EXPECT_EQ(o.err.rfind("vdb_isosimp: in.vdb: grid 'density', leaf [280000, 0, 0]: compressed data is damaged (blosc chunk", 0), 0u)
         << o.err;
     EXPECT_FALSE(exists(d + "/out.ply"));
+}
+
+// The processes of a distributed run share the walk of the leaf records (LeafWalkShare): part `part` of
+// `parts` walks its records only, and when any part was unsound (`othersSound` false) every part walks all
+// of them and names the first fault as one process does. Returns the message, empty when none; `mine` and
+// `digest` get what this part told the others.
+std::string walkPart(const std::string& path, size_t part, size_t parts, bool othersSound, bool* mine, uint64_t* digest)
+{
+    vdb_isosimp::LeafWalkShare share;
+    share.part = part;
+    share.parts = parts;
+    int calls = 0;
+    share.allSound = [&](bool sound, uint64_t d) {
+        ++calls;
+        *mine = sound;
+        *digest = d;
+        return sound && othersSound;
+    };
+    try {
+        const vdb_isosimp::VdbFileEntries entries = vdb_isosimp::checkVdbFileStructure(path);
+        vdb_isosimp::checkVdbGridData(path, entries, "density", &share);
+    } catch (const vdb_isosimp::InputError& e) {
+        EXPECT_EQ(calls, parts > 1 ? 1 : 0);
+        return e.what();
+    }
+    EXPECT_EQ(calls, parts > 1 ? 1 : 0);
+    return "";
+}
+
+TEST(DamagedVdb, LeafRecordsWalkedInPartsNameTheSameLeaf)
+{
+    const std::string d = scratch("walk_parts");
+    const uint32_t compression = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
+    vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, compression);
+    vdb_samples::write(d + "/b.vdb", {rowGrid(35000)}, compression);
+    const std::string fa = slurp(d + "/a.vdb"), fb = slurp(d + "/b.vdb");
+    const size_t end = differingEnd(fa, fb);
+    std::string bad = fa;
+    for (size_t k = end - 12; k < end; ++k) bad[k] = char(0xA5 ^ (k * 37));
+    writeBytes(d + "/bad.vdb", bad);
+    const std::string one = walkPart(d + "/bad.vdb", 0, 1, true, nullptr, nullptr);
+    ASSERT_EQ(one.rfind(d + "/bad.vdb: grid 'density', leaf [280000, 0, 0]: compressed data is damaged", 0), 0u) << one;
+
+    bool mine = false;
+    uint64_t digest = 0, digest0 = 1;
+    // The first half of 40,000 records holds no damage: told the other half was sound too, it reads no
+    // further (the damaged leaf 35,000 is not walked), and vouches for the same tree as the other part.
+    EXPECT_EQ(walkPart(d + "/bad.vdb", 0, 2, true, &mine, &digest0), "");
+    EXPECT_TRUE(mine);
+    // The second half finds it, and then walks every record: the same message as one process.
+    EXPECT_EQ(walkPart(d + "/bad.vdb", 1, 2, true, &mine, &digest), one);
+    EXPECT_FALSE(mine);
+    EXPECT_EQ(digest, digest0);
+    // The first half, told another part was not sound, names the same leaf.
+    EXPECT_EQ(walkPart(d + "/bad.vdb", 0, 2, false, &mine, &digest), one);
+    EXPECT_TRUE(mine);
+    // Another stored tree (one more active voxel in the first leaf) gives another digest: a copy that
+    // differs between machines is walked whole by each.
+    auto g = rowGrid(-1);
+    g->tree().setValueOn(openvdb::Coord(3, 3, 5), 0.5f);
+    vdb_samples::write(d + "/c.vdb", {g}, compression);
+    EXPECT_EQ(walkPart(d + "/c.vdb", 0, 2, true, &mine, &digest), "");
+    EXPECT_NE(digest, digest0);
+}
+
+TEST(DamagedVdb, EveryOpenSettlesItsShareOnce)
+{
+    // Whatever stops an open (a missing file, a damaged header) or not, the share is settled once: the
+    // other processes wait for every one of them.
+    const std::string d = scratch("walk_settle");
+    vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
+    std::string cut = slurp(d + "/a.vdb");
+    cut.resize(cut.size() / 2);
+    writeBytes(d + "/cut.vdb", cut);
+    for (const std::string name : {"a.vdb", "missing.vdb", "cut.vdb"}) {
+        for (size_t parts : {1, 2}) {
+            vdb_isosimp::LeafWalkShare share;
+            share.part = parts - 1;
+            share.parts = parts;
+            int calls = 0;
+            bool said = true;
+            share.allSound = [&](bool sound, uint64_t) {
+                ++calls;
+                said = sound;
+                return sound;
+            };
+            bool opened = false;
+            try {
+                opened = vdb_isosimp::Volume::open(d + "/" + name, "", &share) != nullptr;
+            } catch (const vdb_isosimp::InputError&) {
+            }
+            EXPECT_EQ(opened, name == "a.vdb");
+            EXPECT_EQ(calls, parts > 1 ? 1 : 0) << name << ", " << parts << " parts";
+            if (parts > 1) EXPECT_EQ(said, name == "a.vdb") << name;
+        }
+    }
 }
 
 // Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.

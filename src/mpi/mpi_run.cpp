@@ -4,6 +4,7 @@
 #include "vdb_isosimp/mpi_run.h"
 
 #include "pipeline/pipeline_internal.h"
+#include "vdb/input_checks.h"
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
@@ -147,7 +148,18 @@ MpiRun::~MpiRun()
 Result MpiRun::simplifyFile(const std::string& path, const Options& options, Progress* progress)
 {
     MpiChannel channel(mRank, mRanks);
-    return simplifyVolume([&] { return Volume::open(path, options.gridName); }, path, options, progress, &channel);
+    // Each rank walks its part of the file's leaf records before OpenVDB reads the tree, not all of them.
+    LeafWalkShare share;
+    share.part = size_t(mRank);
+    share.parts = size_t(mRanks);
+    share.allSound = [](bool mineSound, uint64_t digest) {
+        // The largest of: "not sound", the digest, its complement (so the smallest digest too).
+        const uint64_t mine[3] = {mineSound ? 0u : 1u, digest, ~digest};
+        uint64_t most[3] = {0, 0, 0};
+        check(MPI_Allreduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD), "allreduce");
+        return most[0] == 0 && most[1] == ~most[2];
+    };
+    return simplifyVolume([&] { return Volume::open(path, options.gridName, &share); }, path, options, progress, &channel);
 }
 
 #else

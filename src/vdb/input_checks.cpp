@@ -642,16 +642,17 @@ std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint6
     return at;
 }
 
-// The leaf records walked in runs on all of the run's threads, each run by a reader of its own from
-// where `at` says it starts: true when every record is sound and starts where `at` says. On false the
-// records are walked again one after another, which finds the first fault and names it as always.
+// The leaf records [first, last) walked in runs on all of the run's threads, each run by a reader of its
+// own from where `at` says it starts: true when every record is sound and starts where `at` says. On
+// false the records are walked again one after another, which finds the first fault and names it as always.
 bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, const std::vector<uint64_t>& at,
-                      const VdbGridLayout& layout, uint32_t compression, bool half, uint64_t valueSize,
-                      const DelayedLoadSizes& delayed)
+                      size_t first, size_t last, const VdbGridLayout& layout, uint32_t compression, bool half,
+                      uint64_t valueSize, const DelayedLoadSizes& delayed)
 {
     constexpr size_t kRun = 16384;  // leaves a reader walks: a few MB of records
     std::atomic<bool> sound{true};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, at.size() - 1, kRun), [&](const tbb::blocked_range<size_t>& r) {
+    if (first >= last) return true;
+    tbb::parallel_for(tbb::blocked_range<size_t>(first, last, kRun), [&](const tbb::blocked_range<size_t>& r) {
         if (!sound) return;
         BoundedReader in(path, fileSize);
         in.setLimit(end);
@@ -672,8 +673,28 @@ bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, 
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
 // record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
 // `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
+// A hash of the leaves' origins, active counts and record starts, a word at a time (multiply and
+// fold): what two processes' walks of the same stored tree agree on.
+uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at)
+{
+    uint64_t h = at.size();
+    const auto add = [&h](uint64_t w) {
+        h = (h ^ w) * 0x9E3779B97F4A7C15ull;
+        h ^= h >> 29;
+    };
+    for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
+        const auto& o = layout.leafOrigins[i];
+        add(uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]));
+        add(uint64_t(uint32_t(o[2])) << 32 | layout.leafActive[i]);
+    }
+    for (uint64_t a : at) add(a);
+    return h;
+}
+
+// With a share of several parts, only this process's part of the records is walked at once, and every
+// part's verdict decides whether all records are walked one after another.
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
-              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout)
+              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout, LeafWalkShare* share = nullptr)
 {
     const std::string& name = e.name;
     const bool locate = e.streamed && e.blockPos == 0;
@@ -696,8 +717,13 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     // starts: its millions of leaves are walked on all threads, the way they are read later.
     const std::vector<uint64_t> at =
         locate ? std::vector<uint64_t>{} : leafStarts(delayed, leaves, e.blockPos, e.endPos, compression, half, valueSize);
-    if (!at.empty() && at.back() == e.endPos &&
-        walkLeavesAtOnce(path, in.size(), e.endPos, at, layout, compression, half, valueSize, delayed)) {
+    const bool shared = share && share->parts > 1;
+    const size_t first = shared ? leaves * share->part / share->parts : 0;
+    const size_t last = shared ? leaves * (share->part + 1) / share->parts : leaves;
+    bool sound = !at.empty() && at.back() == e.endPos &&
+                 walkLeavesAtOnce(path, in.size(), e.endPos, at, first, last, layout, compression, half, valueSize, delayed);
+    if (shared) sound = share->settle(sound, treeDigest(layout, at));
+    if (sound) {
         in.seek(e.endPos);
     } else {
         for (size_t i = 0; i < leaves; ++i) {
@@ -753,7 +779,8 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
 
 } // namespace
 
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName)
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName,
+                               LeafWalkShare* share)
 {
     VdbGridLayout layout;
     if (!f.checkable) return layout;
@@ -783,7 +810,7 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     uint32_t compression = 0;
     DelayedLoadSizes delayed;
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
-    walkTree(path, in, tree, compression, half, valueSize, delayed, layout);
+    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.checked = true;
     return layout;

@@ -7,6 +7,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,26 @@ struct VdbGridLayout {
     std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
 };
 
+// The processes of a distributed run share the walk of a grid's leaf records (checkVdbGridData): where
+// the file says where every record starts, each walks part `part` of `parts` of them (in file order), and
+// all learn whether every part was sound and every process saw the same stored tree (a digest of its
+// leaves' origins, active counts and record positions: a copy that differs on one machine is not
+// vouched for by another's walk). If not, each walks every record as one process does, which names the
+// first fault the same way everywhere. So a process reads a part of the file's records, not all of
+// them. Every process settles exactly once per open (Volume::open sees to it, failed or not), or the
+// others wait for it.
+struct LeafWalkShare {
+    size_t part = 0, parts = 1;
+    // Every process's verdict and digest in; out: true when all were sound with one digest.
+    std::function<bool(bool mineSound, uint64_t digest)> allSound;
+    bool settled = false;
+    bool settle(bool mineSound, uint64_t digest)
+    {
+        settled = true;
+        return allSound(mineSound, digest);
+    }
+};
+
 // Walks one float or double grid's stored tree before OpenVDB reads it: the topology node by node
 // (counts against the bytes that hold them, node origins, tile-value chunks), then every leaf's
 // record (value mask, compression code, chunk size, the blosc header's sizes and block offsets or
@@ -58,7 +79,9 @@ struct VdbGridLayout {
 // (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
 // @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
 // "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName);
+// With a share (and several parts), this process walks its part of the leaf records only (see LeafWalkShare).
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName,
+                               LeafWalkShare* share = nullptr);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

@@ -674,10 +674,39 @@ void Volume::trimInputMapping() const
     for (const auto& [start, length] : mMapped) ::madvise(reinterpret_cast<void*>(start), length, MADV_DONTNEED);
 }
 
-std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName)
+namespace {
+
+// A share of the leaf records' walk is settled once by every process, failed or not (LeafWalkShare):
+// one that stops before its walk (a missing file, a damaged header) says "not sound", so the others
+// walk every record themselves instead of waiting for it.
+class SettleOnce {
+public:
+    explicit SettleOnce(LeafWalkShare* share) : mShare(share && share->parts > 1 ? share : nullptr) {}
+    ~SettleOnce()
+    {
+        try {
+            settle();
+        } catch (...) {  // an error is already on its way out; the run ends with it
+        }
+    }
+    SettleOnce(const SettleOnce&) = delete;
+    SettleOnce& operator=(const SettleOnce&) = delete;
+    void settle()
+    {
+        if (mShare && !mShare->settled) mShare->settle(false, 0);
+    }
+
+private:
+    LeafWalkShare* mShare;
+};
+
+} // namespace
+
+std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName, LeafWalkShare* share)
 {
     static std::once_flag init;
     std::call_once(init, [] { openvdb::initialize(); });
+    SettleOnce settleOnce(share);
 
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
@@ -733,7 +762,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
     const Stopwatch check;
-    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), share);
+    settleOnce.settle();  // a grid whose records were not walked: the others walk theirs whole
     const double checkSeconds = check.seconds();
 
     openvdb::GridBase::Ptr grid;
