@@ -115,6 +115,36 @@ ours=$(grep -c '^vdb_isosimp: ' "$W/missing.err" || true)
 [ "$ours" = 1 ] || { cat "$W/missing.err"; fail "missing file: $ours lines of ours, not 1"; }
 echo "missing file: exit $code, one line"
 
+# Rank 1 reads another file (a copy that differs between machines: another noise seed, the same
+# blocks): one line, nothing written. The same wrapper with the same file meshes as one process.
+"$B/make_volume" noise -n 112 --seed 7 -o "$W/other.vdb" > /dev/null
+cat > "$W/rank1_reads.sh" << 'EOF'
+#!/usr/bin/env bash
+# Rank 1 reads $OTHER in place of the first argument.
+if [ "$OMPI_COMM_WORLD_RANK" = 1 ]; then f=$OTHER; else f=$1; fi
+shift
+exec "$EXE" "$f" "$@"
+EOF
+chmod +x "$W/rank1_reads.sh"
+for OTHER in "$W/other.vdb" "$W/v.vdb"; do
+  rm -f "$W/mixed.ply"
+  set +e
+  mpirun -np 2 -x OTHER="$OTHER" -x EXE="$B/vdb_isosimp" "$W/rank1_reads.sh" "$W/v.vdb" --ratio 0.05 --slab-blocks 64 -q \
+    -o "$W/mixed.ply" 2> "$W/mixed.err"
+  code=$?
+  set -e
+  if [ "$OTHER" = "$W/v.vdb" ]; then
+    [ $code = 0 ] || { cat "$W/mixed.err"; fail "the same file through the wrapper: exit $code"; }
+    continue
+  fi
+  [ $code -ne 0 ] || fail "a different file on rank 1: exit 0"
+  ours=$(grep -c '^vdb_isosimp: ' "$W/mixed.err" || true)
+  [ "$ours" = 1 ] || { cat "$W/mixed.err"; fail "a different file on rank 1: $ours lines of ours, not 1"; }
+  grep -q "^vdb_isosimp: .*v.vdb: the ranks read different files" "$W/mixed.err" || { cat "$W/mixed.err"; fail "a different file on rank 1: not said"; }
+  ls "$W"/mixed.ply* > /dev/null 2>&1 && fail "a different file on rank 1: output left behind"
+  echo "a different file on rank 1: exit $code, one line"
+done
+
 # A killed rank: mpirun ends the others; nothing is written.
 "$B/make_volume" noise -n 160 -o "$W/big.vdb" > /dev/null
 mpirun -np 2 "$B/vdb_isosimp" "$W/big.vdb" --ratio 0.05 --slab-blocks 64 --threads 1 -q -o "$W/kill.ply" \

@@ -157,7 +157,12 @@ Result MpiRun::simplifyFile(const std::string& path, const Options& options, Pro
         const uint64_t mine[3] = {mineSound ? 0u : 1u, digest, ~digest};
         uint64_t most[3] = {0, 0, 0};
         check(MPI_Allreduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD), "allreduce");
-        return most[0] == 0 && most[1] == ~most[2];
+        // Every rank walked its part soundly, but of different trees: a mesh made of both would be
+        // neither file's. Every rank throws the same error.
+        if (most[0] == 0 && most[1] != ~most[2])
+            throw InputError("the ranks read different files under this path (their stored trees differ): the file "
+                             "changed, or differs between machines");
+        return most[0] == 0;
     };
     return simplifyVolume([&] { return Volume::open(path, options.gridName, &share); }, path, options, progress, &channel);
 }

@@ -670,9 +670,6 @@ bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, 
     return sound;
 }
 
-// Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
-// record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
-// `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
 // A hash of the leaves' origins, active counts and record starts, a word at a time (multiply and
 // fold): what two processes' walks of the same stored tree agree on.
 uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at)
@@ -691,6 +688,9 @@ uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at
     return h;
 }
 
+// Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
+// record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
+// `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
 // With a share of several parts, only this process's part of the records is walked at once, and every
 // part's verdict decides whether all records are walked one after another.
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,

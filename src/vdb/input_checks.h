@@ -52,15 +52,16 @@ struct VdbGridLayout {
 
 // The processes of a distributed run share the walk of a grid's leaf records (checkVdbGridData): where
 // the file says where every record starts, each walks part `part` of `parts` of them (in file order), and
-// all learn whether every part was sound and every process saw the same stored tree (a digest of its
-// leaves' origins, active counts and record positions: a copy that differs on one machine is not
-// vouched for by another's walk). If not, each walks every record as one process does, which names the
-// first fault the same way everywhere. So a process reads a part of the file's records, not all of
-// them. Every process settles exactly once per open (Volume::open sees to it, failed or not), or the
+// all learn whether every part was sound; if not, each walks every record as one process does, which
+// names the first fault the same way everywhere. So a process reads a part of the file's records, not
+// all of them. With the verdicts goes a digest of each process's stored tree (its leaves' origins, active
+// counts and record positions): a copy that differs on one machine is not vouched for by another's
+// walk. Every process settles exactly once per open (Volume::open sees to it, failed or not), or the
 // others wait for it.
 struct LeafWalkShare {
     size_t part = 0, parts = 1;
-    // Every process's verdict and digest in; out: true when all were sound with one digest.
+    // Every process's verdict and digest in; out: true when all were sound. Throws (on every process)
+    // when all were sound but the digests differ.
     std::function<bool(bool mineSound, uint64_t digest)> allSound;
     bool settled = false;
     bool settle(bool mineSound, uint64_t digest)
