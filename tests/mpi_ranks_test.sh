@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Distributed runs (mpirun -np N vdb_isosimp): the same bytes as one process for 1, 2 and 4 ranks and
-# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf record in
-# one rank's part of the walk, a killed rank) ends the run non-zero with one line of ours and no output file.
+# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf record, a
+# different file on one rank, a killed rank) ends the run non-zero with one line of ours and no output file.
 # Usage: mpi_ranks_test.sh BUILD_DIR
 set -euo pipefail
 B=$1
@@ -80,8 +80,8 @@ for f in r_one_lod0.ply r_one_lod1.ply; do cmp "$W/$f" "$W/${f/one/two}" || fail
 echo "--lods 0.2,0.05 --slab-blocks 512: 2 ranks, same bytes as one process"
 
 # Damaged leaf records (at a quarter and at 60 % of the file; the leaf at z = 96 of 112 only the last
-# rank reads): each rank walks its part of the records before OpenVDB reads the tree, and the one that
-# finds the damage has every rank walk all of them, so the run ends with the line one process prints.
+# rank reads): every rank walks the records before OpenVDB reads the tree, and the run ends with the
+# line one process prints.
 for pct in 25 60; do
   cp "$W/v.vdb" "$W/bad.vdb"
   size=$(stat -c %s "$W/bad.vdb")

@@ -409,22 +409,30 @@ openvdb::FloatGrid::Ptr rowGrid(int marked)
     return g;
 }
 
-TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
+// The row grid's file (a.vdb in `d`), and the same with the 12 bytes before the end of leaf 35,000's
+// record scrambled (the last bytes where it differs from a file whose leaf 35,000 holds other values).
+std::pair<std::string, std::string> rowFiles(const std::string& d)
 {
-    const std::string d = scratch("located_runs");
     const uint32_t compression = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
     vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, compression);
     vdb_samples::write(d + "/b.vdb", {rowGrid(35000)}, compression);
     const std::string fa = slurp(d + "/a.vdb"), fb = slurp(d + "/b.vdb");
+    const size_t end = differingEnd(fa, fb);
+    EXPECT_GT(end, fa.size() / 2);
+    std::string bad = fa;
+    for (size_t k = end - 12; k < end; ++k) bad[k] = char(0xA5 ^ (k * 37));
+    return {fa, bad};
+}
+
+TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
+{
+    const std::string d = scratch("located_runs");
+    const auto [fa, bad] = rowFiles(d);
     writeBytes(d + "/in.vdb", fa);
     const Outcome clean = runLimited(d);
     ASSERT_EQ(clean.code, 0) << clean.err;
     std::remove((d + "/out.ply").c_str());
 
-    const size_t end = differingEnd(fa, fb);
-    ASSERT_GT(end, fa.size() / 2);
-    std::string bad = fa;
-    for (size_t k = end - 12; k < end; ++k) bad[k] = char(0xA5 ^ (k * 37));
     writeBytes(d + "/in.vdb", bad);
     const Outcome o = runLimited(d);
     ASSERT_EQ(o.code, 1) << o.err;
@@ -435,100 +443,82 @@ TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
     EXPECT_FALSE(exists(d + "/out.ply"));
 }
 
-// The processes of a distributed run share the walk of the leaf records (LeafWalkShare): part `part` of
-// `parts` walks its records only, and when any part was unsound (`othersSound` false) every part walks all
-// of them and names the first fault as one process does. Returns the message, empty when none; `mine` and
-// `digest` get what this part told the others.
-std::string walkPart(const std::string& path, size_t part, size_t parts, bool othersSound, bool* mine, uint64_t* digest)
+// The processes of a distributed run each walk their own copy's records and agree on the stored tree's
+// digest (TreeAgreement): the same grid written twice gives one digest, another tree another.
+uint64_t digestOf(const std::string& path)
 {
-    vdb_isosimp::LeafWalkShare share;
-    share.part = part;
-    share.parts = parts;
+    vdb_isosimp::TreeAgreement agreement;
     int calls = 0;
-    share.allSound = [&](bool sound, uint64_t d) {
+    uint64_t digest = 0;
+    agreement.agree = [&](bool walked, uint64_t d) {
         ++calls;
-        *mine = sound;
-        *digest = d;
-        return sound && othersSound;
+        EXPECT_TRUE(walked);
+        digest = d;
     };
-    try {
-        const vdb_isosimp::VdbFileEntries entries = vdb_isosimp::checkVdbFileStructure(path);
-        vdb_isosimp::checkVdbGridData(path, entries, "density", &share);
-    } catch (const vdb_isosimp::InputError& e) {
-        EXPECT_EQ(calls, parts > 1 ? 1 : 0);
-        return e.what();
-    }
-    EXPECT_EQ(calls, parts > 1 ? 1 : 0);
-    return "";
+    const vdb_isosimp::VdbFileEntries entries = vdb_isosimp::checkVdbFileStructure(path);
+    vdb_isosimp::checkVdbGridData(path, entries, "density", &agreement);
+    EXPECT_EQ(calls, 1);
+    return digest;
 }
 
-TEST(DamagedVdb, LeafRecordsWalkedInPartsNameTheSameLeaf)
+TEST(DamagedVdb, CopiesOfOneTreeHaveOneDigest)
 {
-    const std::string d = scratch("walk_parts");
+    const std::string d = scratch("digest");
     const uint32_t compression = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
     vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, compression);
-    vdb_samples::write(d + "/b.vdb", {rowGrid(35000)}, compression);
-    const std::string fa = slurp(d + "/a.vdb"), fb = slurp(d + "/b.vdb");
-    const size_t end = differingEnd(fa, fb);
-    std::string bad = fa;
-    for (size_t k = end - 12; k < end; ++k) bad[k] = char(0xA5 ^ (k * 37));
-    writeBytes(d + "/bad.vdb", bad);
-    const std::string one = walkPart(d + "/bad.vdb", 0, 1, true, nullptr, nullptr);
-    ASSERT_EQ(one.rfind(d + "/bad.vdb: grid 'density', leaf [280000, 0, 0]: compressed data is damaged", 0), 0u) << one;
-
-    bool mine = false;
-    uint64_t digest = 0, digest0 = 1;
-    // The first half of 40,000 records holds no damage: told the other half was sound too, it reads no
-    // further (the damaged leaf 35,000 is not walked), and vouches for the same tree as the other part.
-    EXPECT_EQ(walkPart(d + "/bad.vdb", 0, 2, true, &mine, &digest0), "");
-    EXPECT_TRUE(mine);
-    // The second half finds it, and then walks every record: the same message as one process.
-    EXPECT_EQ(walkPart(d + "/bad.vdb", 1, 2, true, &mine, &digest), one);
-    EXPECT_FALSE(mine);
-    EXPECT_EQ(digest, digest0);
-    // The first half, told another part was not sound, names the same leaf.
-    EXPECT_EQ(walkPart(d + "/bad.vdb", 0, 2, false, &mine, &digest), one);
-    EXPECT_TRUE(mine);
-    // Another stored tree (one more active voxel in the first leaf) gives another digest: a copy that
-    // differs between machines is walked whole by each.
+    vdb_samples::write(d + "/again.vdb", {rowGrid(-1)}, compression);  // another file UUID, the same tree
     auto g = rowGrid(-1);
-    g->tree().setValueOn(openvdb::Coord(3, 3, 5), 0.5f);
-    vdb_samples::write(d + "/c.vdb", {g}, compression);
-    EXPECT_EQ(walkPart(d + "/c.vdb", 0, 2, true, &mine, &digest), "");
-    EXPECT_NE(digest, digest0);
+    g->tree().setValueOn(openvdb::Coord(3, 3, 5), 0.5f);  // one more active voxel in the first leaf
+    vdb_samples::write(d + "/other.vdb", {g}, compression);
+    vdb_samples::write(d + "/values.vdb", {rowGrid(35000)}, compression);  // one leaf's values: its chunk's size
+    const uint64_t a = digestOf(d + "/a.vdb");
+    EXPECT_NE(slurp(d + "/a.vdb"), slurp(d + "/again.vdb"));
+    EXPECT_EQ(digestOf(d + "/again.vdb"), a);
+    EXPECT_NE(digestOf(d + "/other.vdb"), a);
+    if (slurp(d + "/values.vdb").size() != slurp(d + "/a.vdb").size()) {
+        EXPECT_NE(digestOf(d + "/values.vdb"), a);
+    }
 }
 
-TEST(DamagedVdb, EveryOpenSettlesItsShareOnce)
+TEST(DamagedVdb, EveryOpenAgreesOnce)
 {
-    // Whatever stops an open (a missing file, a damaged header) or not, the share is settled once: the
-    // other processes wait for every one of them.
-    const std::string d = scratch("walk_settle");
-    vdb_samples::write(d + "/a.vdb", {rowGrid(-1)}, openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-    std::string cut = slurp(d + "/a.vdb");
-    cut.resize(cut.size() / 2);
-    writeBytes(d + "/cut.vdb", cut);
-    for (const std::string name : {"a.vdb", "missing.vdb", "cut.vdb"}) {
-        for (size_t parts : {1, 2}) {
-            vdb_isosimp::LeafWalkShare share;
-            share.part = parts - 1;
-            share.parts = parts;
-            int calls = 0;
-            bool said = true;
-            share.allSound = [&](bool sound, uint64_t) {
-                ++calls;
-                said = sound;
-                return sound;
-            };
-            bool opened = false;
-            try {
-                opened = vdb_isosimp::Volume::open(d + "/" + name, "", &share) != nullptr;
-            } catch (const vdb_isosimp::InputError&) {
-            }
-            EXPECT_EQ(opened, name == "a.vdb");
-            EXPECT_EQ(calls, parts > 1 ? 1 : 0) << name << ", " << parts << " parts";
-            if (parts > 1) EXPECT_EQ(said, name == "a.vdb") << name;
+    // Whatever stops an open (a missing file, a cut file, a damaged leaf record) or not, a process
+    // agrees once, with no say when its walk did not end: the others wait for every one of them.
+    const std::string d = scratch("agree_once");
+    const auto [fa, bad] = rowFiles(d);
+    writeBytes(d + "/cut.vdb", fa.substr(0, fa.size() / 2));
+    writeBytes(d + "/bad.vdb", bad);
+    for (const std::string name : {"a.vdb", "missing.vdb", "cut.vdb", "bad.vdb"}) {
+        vdb_isosimp::TreeAgreement agreement;
+        int calls = 0;
+        bool said = false;
+        agreement.agree = [&](bool walked, uint64_t) {
+            ++calls;
+            said = walked;
+        };
+        bool opened = false;
+        std::string error;
+        try {
+            opened = vdb_isosimp::Volume::open(d + "/" + name, "", &agreement) != nullptr;
+        } catch (const vdb_isosimp::InputError& e) {
+            error = e.what();
+        }
+        EXPECT_EQ(opened, name == "a.vdb") << error;
+        EXPECT_EQ(calls, 1) << name;
+        EXPECT_EQ(said, name == "a.vdb") << name;
+        if (name == "bad.vdb") {
+            EXPECT_NE(error.find("leaf [280000, 0, 0]: compressed data is damaged"), std::string::npos) << error;
         }
     }
+    // An agreement that fails (the copies differ) fails the open, once.
+    vdb_isosimp::TreeAgreement differ;
+    int calls = 0;
+    differ.agree = [&](bool, uint64_t) {
+        ++calls;
+        throw vdb_isosimp::InputError("the copies differ");
+    };
+    EXPECT_THROW(vdb_isosimp::Volume::open(d + "/a.vdb", "", &differ), vdb_isosimp::InputError);
+    EXPECT_EQ(calls, 1);
 }
 
 // Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.

@@ -116,18 +116,6 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[1][2], 1.0)
         self.assertAlmostEqual(by_workers[1][4], 1.0)
 
-    def test_leaf_walk_divided_among_ranks(self):
-        # 1 s of checking, CHECK_SERIAL of it the topology every rank walks: the rest, the leaf records,
-        # is shared among the ranks (two: half each) as among threads; the block list and the cut are not.
-        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
-        rep["seconds_check"] = 1.0
-        rep["seconds_blocks"] = 0.4
-        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
-        by_workers = {row[0]: row for row in rows}
-        shared = 1.0 - scale_model.CHECK_SERIAL
-        self.assertAlmostEqual(by_workers[2][1], setup - shared / 2 + 5.0 + final)
-        self.assertAlmostEqual(by_workers[1][2], 1.0)
-
 
 class MixedModel(unittest.TestCase):
     def test_a_subtree_on_threads(self):

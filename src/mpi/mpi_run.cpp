@@ -148,23 +148,19 @@ MpiRun::~MpiRun()
 Result MpiRun::simplifyFile(const std::string& path, const Options& options, Progress* progress)
 {
     MpiChannel channel(mRank, mRanks);
-    // Each rank walks its part of the file's leaf records before OpenVDB reads the tree, not all of them.
-    LeafWalkShare share;
-    share.part = size_t(mRank);
-    share.parts = size_t(mRanks);
-    share.allSound = [](bool mineSound, uint64_t digest) {
-        // The largest of: "not sound", the digest, its complement (so the smallest digest too).
-        const uint64_t mine[3] = {mineSound ? 0u : 1u, digest, ~digest};
+    // Every rank walks its own copy's leaf records; their trees must be one.
+    TreeAgreement agreement;
+    agreement.agree = [](bool walked, uint64_t digest) {
+        // The largest of: "did not walk", the digest, its complement (so the smallest digest too).
+        const uint64_t mine[3] = {walked ? 0u : 1u, digest, ~digest};
         uint64_t most[3] = {0, 0, 0};
         check(MPI_Allreduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD), "allreduce");
-        // Every rank walked its part soundly, but of different trees: a mesh made of both would be
-        // neither file's. Every rank throws the same error.
+        // A mesh made of both would be neither file's. Every rank throws the same error.
         if (most[0] == 0 && most[1] != ~most[2])
             throw InputError("the ranks read different files under this path (their stored trees differ): the file "
                              "changed, or differs between machines");
-        return most[0] == 0;
     };
-    return simplifyVolume([&] { return Volume::open(path, options.gridName, &share); }, path, options, progress, &channel);
+    return simplifyVolume([&] { return Volume::open(path, options.gridName, &agreement); }, path, options, progress, &channel);
 }
 
 #else

@@ -642,17 +642,16 @@ std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint6
     return at;
 }
 
-// The leaf records [first, last) walked in runs on all of the run's threads, each run by a reader of its
-// own from where `at` says it starts: true when every record is sound and starts where `at` says. On
-// false the records are walked again one after another, which finds the first fault and names it as always.
+// The leaf records walked in runs on all of the run's threads, each run by a reader of its own from
+// where `at` says it starts: true when every record is sound and starts where `at` says. On false the
+// records are walked again one after another, which finds the first fault and names it as always.
 bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, const std::vector<uint64_t>& at,
-                      size_t first, size_t last, const VdbGridLayout& layout, uint32_t compression, bool half,
-                      uint64_t valueSize, const DelayedLoadSizes& delayed)
+                      const VdbGridLayout& layout, uint32_t compression, bool half, uint64_t valueSize,
+                      const DelayedLoadSizes& delayed)
 {
     constexpr size_t kRun = 16384;  // leaves a reader walks: a few MB of records
     std::atomic<bool> sound{true};
-    if (first >= last) return true;
-    tbb::parallel_for(tbb::blocked_range<size_t>(first, last, kRun), [&](const tbb::blocked_range<size_t>& r) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, at.size() - 1, kRun), [&](const tbb::blocked_range<size_t>& r) {
         if (!sound) return;
         BoundedReader in(path, fileSize);
         in.setLimit(end);
@@ -691,10 +690,10 @@ uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
 // record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
 // `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
-// With a share of several parts, only this process's part of the records is walked at once, and every
-// part's verdict decides whether all records are walked one after another.
+// With an agreement, the tree's digest is agreed on once the walk is done (TreeAgreement).
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
-              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout, LeafWalkShare* share = nullptr)
+              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout,
+              TreeAgreement* agreement = nullptr)
 {
     const std::string& name = e.name;
     const bool locate = e.streamed && e.blockPos == 0;
@@ -717,13 +716,8 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     // starts: its millions of leaves are walked on all threads, the way they are read later.
     const std::vector<uint64_t> at =
         locate ? std::vector<uint64_t>{} : leafStarts(delayed, leaves, e.blockPos, e.endPos, compression, half, valueSize);
-    const bool shared = share && share->parts > 1;
-    const size_t first = shared ? leaves * share->part / share->parts : 0;
-    const size_t last = shared ? leaves * (share->part + 1) / share->parts : leaves;
-    bool sound = !at.empty() && at.back() == e.endPos &&
-                 walkLeavesAtOnce(path, in.size(), e.endPos, at, first, last, layout, compression, half, valueSize, delayed);
-    if (shared) sound = share->settle(sound, treeDigest(layout, at));
-    if (sound) {
+    if (!at.empty() && at.back() == e.endPos &&
+        walkLeavesAtOnce(path, in.size(), e.endPos, at, layout, compression, half, valueSize, delayed)) {
         in.seek(e.endPos);
     } else {
         for (size_t i = 0; i < leaves; ++i) {
@@ -737,6 +731,7 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (in.pos() != e.endPos)
         damaged(path, "grid '" + name + "': leaf data ends at byte " + std::to_string(in.pos()) + ", the grid at " +
                           std::to_string(e.endPos));
+    if (agreement) agreement->settle(true, treeDigest(layout, at));
 }
 
 // A file written as a stream (io::Stream) states no grid offsets, and OpenVDB reads every grid in it,
@@ -780,7 +775,7 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
 } // namespace
 
 VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName,
-                               LeafWalkShare* share)
+                               TreeAgreement* agreement)
 {
     VdbGridLayout layout;
     if (!f.checkable) return layout;
@@ -810,7 +805,7 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     uint32_t compression = 0;
     DelayedLoadSizes delayed;
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
-    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
+    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, agreement);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.checked = true;
     return layout;

@@ -50,24 +50,21 @@ struct VdbGridLayout {
     std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
 };
 
-// The processes of a distributed run share the walk of a grid's leaf records (checkVdbGridData): where
-// the file says where every record starts, each walks part `part` of `parts` of them (in file order), and
-// all learn whether every part was sound; if not, each walks every record as one process does, which
-// names the first fault the same way everywhere. So a process reads a part of the file's records, not
-// all of them. With the verdicts goes a digest of each process's stored tree (its leaves' origins, active
-// counts and record positions): a copy that differs on one machine is not vouched for by another's
-// walk. Every process settles exactly once per open (Volume::open sees to it, failed or not), or the
+// The processes of a distributed run each walk every leaf record of their own copy of the file (each
+// decompresses leaves of it: a damaged record must be found where it is read, and a fog grid's default
+// iso-value reads them all), then agree that their copies hold the same stored tree, by a digest of its
+// leaves' origins, active counts and record positions: copies that differ would make a mesh of neither
+// file. Every process agrees exactly once per open (Volume::open sees to it, failed or not), or the
 // others wait for it.
-struct LeafWalkShare {
-    size_t part = 0, parts = 1;
-    // Every process's verdict and digest in; out: true when all were sound. Throws (on every process)
-    // when all were sound but the digests differ.
-    std::function<bool(bool mineSound, uint64_t digest)> allSound;
+struct TreeAgreement {
+    // This process's digest in (`walked` false: it stopped before its walk ended and has no say);
+    // throws on every process when all walked and the digests differ.
+    std::function<void(bool walked, uint64_t digest)> agree;
     bool settled = false;
-    bool settle(bool mineSound, uint64_t digest)
+    void settle(bool walked, uint64_t digest)
     {
         settled = true;
-        return allSound(mineSound, digest);
+        agree(walked, digest);
     }
 };
 
@@ -80,9 +77,9 @@ struct LeafWalkShare {
 // (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
 // @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
 // "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
-// With a share (and several parts), this process walks its part of the leaf records only (see LeafWalkShare).
+// With an agreement, the walked tree's digest is agreed on with the other processes (TreeAgreement).
 VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName,
-                               LeafWalkShare* share = nullptr);
+                               TreeAgreement* agreement = nullptr);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

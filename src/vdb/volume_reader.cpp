@@ -676,12 +676,12 @@ void Volume::trimInputMapping() const
 
 namespace {
 
-// A share of the leaf records' walk is settled once by every process, failed or not (LeafWalkShare):
-// one that stops before its walk (a missing file, a damaged header) says "not sound", so the others
-// walk every record themselves instead of waiting for it.
+// Every process of a distributed run agrees on its tree once per open, failed or not (TreeAgreement):
+// one that stops before its walk ends (a missing file, a damaged record) has no say, and the others go
+// on instead of waiting for it; its error reaches them at the pipeline's next agreement.
 class SettleOnce {
 public:
-    explicit SettleOnce(LeafWalkShare* share) : mShare(share && share->parts > 1 ? share : nullptr) {}
+    explicit SettleOnce(TreeAgreement* agreement) : mAgreement(agreement) {}
     ~SettleOnce()
     {
         try {
@@ -693,20 +693,20 @@ public:
     SettleOnce& operator=(const SettleOnce&) = delete;
     void settle()
     {
-        if (mShare && !mShare->settled) mShare->settle(false, 0);
+        if (mAgreement && !mAgreement->settled) mAgreement->settle(false, 0);
     }
 
 private:
-    LeafWalkShare* mShare;
+    TreeAgreement* mAgreement;
 };
 
 } // namespace
 
-std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName, LeafWalkShare* share)
+std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName, TreeAgreement* agreement)
 {
     static std::once_flag init;
     std::call_once(init, [] { openvdb::initialize(); });
-    SettleOnce settleOnce(share);
+    SettleOnce settleOnce(agreement);
 
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
@@ -762,8 +762,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
     const Stopwatch check;
-    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), share);
-    settleOnce.settle();  // a grid whose records were not walked: the others walk theirs whole
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement);
+    settleOnce.settle();  // a tree this walk does not cover has no say
     const double checkSeconds = check.seconds();
 
     openvdb::GridBase::Ptr grid;

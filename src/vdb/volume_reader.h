@@ -18,7 +18,7 @@
 
 namespace vdb_isosimp {
 
-struct LeafWalkShare;  // input_checks.h
+struct TreeAgreement;  // input_checks.h
 
 struct VolumeInfo {
     std::string file;
@@ -44,11 +44,11 @@ public:
     // first float/double grid; Options::gridName): the file's structure, the
     // grid's type, class, transform and index bounding box are checked before any voxel is read
     // (input_checks.h); OpenVDB's own exceptions become InputError too.
-    // With a share (a distributed run's processes), this process walks its part of the grid's leaf
-    // records (input_checks.h: LeafWalkShare) and settles the share once, whatever happens.
+    // With an agreement (a distributed run's processes), the stored tree's digest is agreed on once,
+    // whatever happens (input_checks.h: TreeAgreement).
     // @throw InputError naming the file and the problem.
     static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName,
-                                        LeafWalkShare* share = nullptr);
+                                        TreeAgreement* agreement = nullptr);
     // A read-only view of a grid already in memory (the library's grid-in entry point): its voxel
     // buffers are never released. `label` names it in messages. @throw InputError as open() does.
     static std::unique_ptr<Volume> fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label);
