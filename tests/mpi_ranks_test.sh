@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Distributed runs (mpirun -np N vdb_isosimp): the same bytes as one process for 1, 2 and 4 ranks and
-# 1 and 2 threads, on a generated volume cut into many slabs; a rank that fails (a damaged leaf record, a
-# different file on one rank, a killed rank) ends the run non-zero with one line of ours and no output file.
+# 1 and 2 threads, on a generated volume cut into many slabs (the noise volume is a fog grid: its default
+# iso-value comes from every rank's part of the leaves); a rank that fails (a damaged leaf record, damaged
+# voxels, a different file on one rank, a killed rank) ends the run non-zero with one line of ours and no
+# output file.
 # Usage: mpi_ranks_test.sh BUILD_DIR
 set -euo pipefail
 B=$1
@@ -103,6 +105,56 @@ for pct in 25 60; do
     ls "$W"/bad.ply* > /dev/null 2>&1 && fail "damaged file: output left behind"
     echo "damaged file at $pct %, $N ranks: exit $code, one line: $(grep '^vdb_isosimp: ' "$W/bad.err")"
   done
+done
+
+# Damaged compressed voxels that the walk of the records cannot see (bytes scrambled inside one leaf's
+# chunk: the last bytes where two files differ in that leaf's values), in a fog grid without --iso: each
+# rank reads its part of the leaves for the default iso-value, and the one that meets the leaf ends the
+# run with its message, the line of one process (and which rank).
+/usr/bin/python3 - "$W" << 'EOF'
+import sys
+import pyopenvdb as vdb
+d = sys.argv[1]
+def grid(marked):
+    g = vdb.FloatGrid(0.0)
+    g.name = "density"
+    acc = g.getAccessor()
+    for z in range(48):
+        for y in range(48):
+            for x in range(48):
+                v = ((x * 7 + y * 13 + z * 29) % 31) / 31.0
+                if marked and 32 <= x < 40 and 32 <= y < 40 and 32 <= z < 40:
+                    v = 1.0 - v * 0.5
+                acc.setValueOn((x, y, z), v)
+    return g
+vdb.write(d + "/da.vdb", grids=[grid(False)])
+vdb.write(d + "/db.vdb", grids=[grid(True)])
+a, b = open(d + "/da.vdb", "rb").read(), open(d + "/db.vdb", "rb").read()
+ea, eb = len(a), len(b)
+while ea > 0 and eb > 0 and a[ea - 1] == b[eb - 1]:
+    ea, eb = ea - 1, eb - 1
+bad = bytearray(a)
+for k in range(ea - 24, ea):
+    bad[k] = (0xA5 ^ (k * 37)) & 0xFF
+open(d + "/voxels.vdb", "wb").write(bad)
+EOF
+set +e
+"$B/vdb_isosimp" "$W/voxels.vdb" -q -o "$W/voxels.ply" 2> "$W/one.err"
+set -e
+one=$(grep '^vdb_isosimp: ' "$W/one.err")
+echo "$one" | grep -q "voxels.vdb: grid 'density', leaf \[32, 32, 32\]: compressed data is damaged" || fail "damaged voxels: not found by one process ($one)"
+for N in 2 4; do
+  set +e
+  mpirun -np $N "$B/vdb_isosimp" "$W/voxels.vdb" -q --threads 1 -o "$W/voxels.ply" 2> "$W/voxels.err"
+  code=$?
+  set -e
+  [ $code -ne 0 ] || fail "damaged voxels, $N ranks: exit 0"
+  ours=$(grep -c '^vdb_isosimp: ' "$W/voxels.err" || true)
+  [ "$ours" = 1 ] || { cat "$W/voxels.err"; fail "damaged voxels, $N ranks: $ours lines of ours, not 1"; }
+  line=$(grep '^vdb_isosimp: ' "$W/voxels.err")
+  [ "${line% (rank *)}" = "$one" ] || fail "damaged voxels, $N ranks: '$line' is not the line of one process"
+  ls "$W"/voxels.ply* > /dev/null 2>&1 && fail "damaged voxels, $N ranks: output left behind"
+  echo "damaged voxels, default iso, $N ranks: exit $code, one line: $line"
 done
 
 # A missing file on every rank: one line, not one per rank.

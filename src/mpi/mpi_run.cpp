@@ -99,6 +99,16 @@ public:
         throw PeerFailed("rank " + std::to_string(failed) + " failed");
     }
 
+    std::array<double, 2> agreeRange(std::array<double, 2> range, bool failed) override
+    {
+        // The largest of: a failure, minus the smallest value, the largest value.
+        const double mine[3] = {failed ? 1.0 : 0.0, -range[0], range[1]};
+        double most[3] = {0.0, 0.0, 0.0};
+        check(MPI_Allreduce(mine, most, 3, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD), "allreduce");
+        if (most[0] > 0.0 && !failed) throw PeerFailed("another rank failed reading the value range");
+        return {-most[1], most[2]};
+    }
+
     void send(size_t to, const std::vector<char>& bytes, const std::string& error) override
     {
         const uint64_t failed = error.empty() ? 0 : 1;

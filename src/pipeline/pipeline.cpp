@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <functional>
 #include <map>
 #include <memory>
@@ -83,6 +84,7 @@ public:
 
     void openVolume(const VolumeOpener& open);
     void chooseIso();
+    std::array<double, 2> valueRange() const;
     void listBlocks();
     void splitSlabs();
     void keepOwnLeaves();
@@ -214,12 +216,29 @@ void PipelineRun::chooseIso()
     } else if (mInfo.levelSet) {
         mCls.iso = 0.0;
     } else {
-        const auto range = mVol->valueRange();
+        const auto range = valueRange();
         mCls.iso = 0.5 * (range[0] + range[1]);
         mResult.report.isoDefaulted = true;
     }
     mResult.report.iso = mCls.iso;
     mResult.report.secondsBlocks = mClock.seconds() - start;
+}
+
+// The grid's value range. With ranks, each reads its part of the leaves and the ranks agree on the
+// smallest and largest (the same range, so the same iso-value, as one process reading them all).
+std::array<double, 2> PipelineRun::valueRange() const
+{
+    if (!mRanks) return mVol->valueRange();
+    std::array<double, 2> range{HUGE_VAL, -HUGE_VAL};
+    std::exception_ptr failed;
+    try {
+        range = mVol->valueRange(mRanks->rank(), mRanks->ranks());
+    } catch (...) {
+        failed = std::current_exception();
+    }
+    range = mRanks->agreeRange(range, failed != nullptr);
+    if (failed) std::rethrow_exception(failed);
+    return range;
 }
 
 void PipelineRun::listBlocks()
@@ -853,6 +872,9 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.splitSlabs();
         run.keepOwnLeaves();
         run.countFacesForTarget();
+    } catch (const PeerFailed&) {
+        run.agreeAmongRanks({});  // another rank failed first: agree() reports its message
+        throw;
     } catch (const std::exception& e) {
         run.agreeAmongRanks(e.what());
         throw;

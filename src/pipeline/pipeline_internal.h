@@ -47,6 +47,11 @@ public:
     // counted for a face target); otherwise throws on every rank, on rank 0 the first failed rank's
     // message.
     virtual std::array<uint64_t, 2> agree(const std::string& error, uint64_t blocks, std::array<uint64_t, 2> counts) = 0;
+    // Called by every rank once when a fog grid's default iso-value is chosen, with the value range of
+    // its part of the leaves, or `failed` when reading them threw: returns the smallest and largest of
+    // all ranks. Throws PeerFailed on a rank that did not fail when another did (agree() then
+    // carries that rank's message to rank 0).
+    virtual std::array<double, 2> agreeRange(std::array<double, 2> range, bool failed) = 0;
     // Hands a finished node to rank `to` (or, `error` not empty, the error that stopped it).
     virtual void send(size_t to, const std::vector<char>& bytes, const std::string& error) = 0;
     // The node rank `from` sends; throws the error it sent instead.

@@ -359,7 +359,7 @@ public:
     std::unique_ptr<CopyReader> copyReader() const override { return std::make_unique<Copies>(*this); }
     std::unique_ptr<CopyReader> privateCopyReader() const override { return std::make_unique<PrivateCopies>(*this); }
 
-    std::array<double, 2> valueRange() const override
+    std::array<double, 2> valueRange(size_t part, size_t parts) const override
     {
         // Scanning the grid itself would load every voxel buffer at once and keep it: read a second,
         // delayed-loading copy instead and free each leaf right after reading it, so the scan costs a
@@ -386,8 +386,10 @@ public:
         else for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(const_cast<LeafT*>(it.getLeaf()));
         const bool release = copy != mGrid;
         using Range = std::array<double, 2>;
+        const size_t first = leaves.size() * part / parts, last = leaves.size() * (part + 1) / parts;
+        if (first >= last) return {lo, hi};
         const Range r = tbb::parallel_reduce(
-            tbb::blocked_range<size_t>(0, leaves.size(), 64), Range{lo, hi},
+            tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
                 for (size_t i = br.begin(); i != br.end(); ++i) {
                     if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName);

@@ -114,8 +114,9 @@ public:
     // often (every few blocks): each leaf read faults in the pages around it too (fault-around,
     // 64 KB), and leaves lie in the file in tree order, not in sweep order.
     void trimInputMapping() const;
-    // Smallest and largest value stored in the grid (voxels, tiles and background).
-    virtual std::array<double, 2> valueRange() const = 0;
+    // Smallest and largest value stored in the grid (voxels, tiles and background); of the voxels, only
+    // those of part `part` of `parts` of the leaves (a distributed run's ranks each read their part).
+    virtual std::array<double, 2> valueRange(size_t part = 0, size_t parts = 1) const = 0;
 
 protected:
     VolumeInfo mInfo;
