@@ -444,21 +444,13 @@ TEST(DamagedVdb, LocatedAmongLeavesWalkedInRuns)
 }
 
 // The processes of a distributed run each walk their own copy's records and agree on the stored tree's
-// digest (TreeAgreement): the same grid written twice gives one digest, another tree another.
+// digest (VdbGridLayout::digest): the same grid written twice gives one digest, another tree another.
 uint64_t digestOf(const std::string& path)
 {
-    vdb_isosimp::TreeAgreement agreement;
-    int calls = 0;
-    uint64_t digest = 0;
-    agreement.agree = [&](bool walked, uint64_t d) {
-        ++calls;
-        EXPECT_TRUE(walked);
-        digest = d;
-    };
     const vdb_isosimp::VdbFileEntries entries = vdb_isosimp::checkVdbFileStructure(path);
-    vdb_isosimp::checkVdbGridData(path, entries, "density", &agreement);
-    EXPECT_EQ(calls, 1);
-    return digest;
+    const vdb_isosimp::VdbGridLayout layout = vdb_isosimp::checkVdbGridData(path, entries, "density");
+    EXPECT_TRUE(layout.checked);
+    return layout.digest;
 }
 
 TEST(DamagedVdb, CopiesOfOneTreeHaveOneDigest)
@@ -489,17 +481,16 @@ TEST(DamagedVdb, EveryOpenAgreesOnce)
     writeBytes(d + "/cut.vdb", fa.substr(0, fa.size() / 2));
     writeBytes(d + "/bad.vdb", bad);
     for (const std::string name : {"a.vdb", "missing.vdb", "cut.vdb", "bad.vdb"}) {
-        vdb_isosimp::TreeAgreement agreement;
         int calls = 0;
         bool said = false;
-        agreement.agree = [&](bool walked, uint64_t) {
+        const vdb_isosimp::TreeAgreement agreement = [&](bool walked, uint64_t) {
             ++calls;
             said = walked;
         };
         bool opened = false;
         std::string error;
         try {
-            opened = vdb_isosimp::Volume::open(d + "/" + name, "", &agreement) != nullptr;
+            opened = vdb_isosimp::Volume::open(d + "/" + name, "", agreement) != nullptr;
         } catch (const vdb_isosimp::InputError& e) {
             error = e.what();
         }
@@ -511,13 +502,12 @@ TEST(DamagedVdb, EveryOpenAgreesOnce)
         }
     }
     // An agreement that fails (the copies differ) fails the open, once.
-    vdb_isosimp::TreeAgreement differ;
     int calls = 0;
-    differ.agree = [&](bool, uint64_t) {
+    const vdb_isosimp::TreeAgreement differ = [&](bool, uint64_t) {
         ++calls;
         throw vdb_isosimp::InputError("the copies differ");
     };
-    EXPECT_THROW(vdb_isosimp::Volume::open(d + "/a.vdb", "", &differ), vdb_isosimp::InputError);
+    EXPECT_THROW(vdb_isosimp::Volume::open(d + "/a.vdb", "", differ), vdb_isosimp::InputError);
     EXPECT_EQ(calls, 1);
 }
 

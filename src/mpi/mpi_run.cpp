@@ -4,7 +4,6 @@
 #include "vdb_isosimp/mpi_run.h"
 
 #include "pipeline/pipeline_internal.h"
-#include "vdb/input_checks.h"
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
@@ -159,8 +158,7 @@ Result MpiRun::simplifyFile(const std::string& path, const Options& options, Pro
 {
     MpiChannel channel(mRank, mRanks);
     // Every rank walks its own copy's leaf records; their trees must be one.
-    TreeAgreement agreement;
-    agreement.agree = [](bool walked, uint64_t digest) {
+    const TreeAgreement agreement = [](bool walked, uint64_t digest) {
         // The largest of: "did not walk", the digest, its complement (so the smallest digest too).
         const uint64_t mine[3] = {walked ? 0u : 1u, digest, ~digest};
         uint64_t most[3] = {0, 0, 0};
@@ -170,7 +168,7 @@ Result MpiRun::simplifyFile(const std::string& path, const Options& options, Pro
             throw InputError("the ranks read different files under this path (their stored trees differ): the file "
                              "changed, or differs between machines");
     };
-    return simplifyVolume([&] { return Volume::open(path, options.gridName, &agreement); }, path, options, progress, &channel);
+    return simplifyVolume([&] { return Volume::open(path, options.gridName, agreement); }, path, options, progress, &channel);
 }
 
 #else

@@ -690,10 +690,8 @@ uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
 // record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
 // `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
-// With an agreement, the tree's digest is agreed on once the walk is done (TreeAgreement).
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
-              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout,
-              TreeAgreement* agreement = nullptr)
+              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout)
 {
     const std::string& name = e.name;
     const bool locate = e.streamed && e.blockPos == 0;
@@ -731,7 +729,7 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (in.pos() != e.endPos)
         damaged(path, "grid '" + name + "': leaf data ends at byte " + std::to_string(in.pos()) + ", the grid at " +
                           std::to_string(e.endPos));
-    if (agreement) agreement->settle(true, treeDigest(layout, at));
+    layout.digest = treeDigest(layout, at);
 }
 
 // A file written as a stream (io::Stream) states no grid offsets, and OpenVDB reads every grid in it,
@@ -774,8 +772,7 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
 
 } // namespace
 
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName,
-                               TreeAgreement* agreement)
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName)
 {
     VdbGridLayout layout;
     if (!f.checkable) return layout;
@@ -805,7 +802,7 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     uint32_t compression = 0;
     DelayedLoadSizes delayed;
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
-    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, agreement);
+    walkTree(path, in, tree, compression, half, valueSize, delayed, layout);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.checked = true;
     return layout;

@@ -7,7 +7,6 @@
 #pragma once
 #include <array>
 #include <cstdint>
-#include <functional>
 #include <string>
 #include <vector>
 
@@ -48,24 +47,9 @@ struct VdbGridLayout {
     bool checked = false;                              // false: a layout left to OpenVDB
     std::vector<std::array<int32_t, 3>> leafOrigins;   // in file order
     std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
-};
-
-// The processes of a distributed run each walk every leaf record of their own copy of the file (each
-// decompresses leaves of it: a damaged record must be found where it is read, and a fog grid's default
-// iso-value reads them all), then agree that their copies hold the same stored tree, by a digest of its
-// leaves' origins, active counts and record positions: copies that differ would make a mesh of neither
-// file. Every process agrees exactly once per open (Volume::open sees to it, failed or not), or the
-// others wait for it.
-struct TreeAgreement {
-    // This process's digest in (`walked` false: it stopped before its walk ended and has no say);
-    // throws on every process when all walked and the digests differ.
-    std::function<void(bool walked, uint64_t digest)> agree;
-    bool settled = false;
-    void settle(bool walked, uint64_t digest)
-    {
-        settled = true;
-        agree(walked, digest);
-    }
+    // A hash of the leaves' origins, active counts and record positions: two copies of one stored tree
+    // have the same digest (the processes of a distributed run compare them: Volume::open).
+    uint64_t digest = 0;
 };
 
 // Walks one float or double grid's stored tree before OpenVDB reads it: the topology node by node
@@ -77,9 +61,7 @@ struct TreeAgreement {
 // (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
 // @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
 // "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
-// With an agreement, the walked tree's digest is agreed on with the other processes (TreeAgreement).
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName,
-                               TreeAgreement* agreement = nullptr);
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

@@ -678,37 +678,40 @@ void Volume::trimInputMapping() const
 
 namespace {
 
-// Every process of a distributed run agrees on its tree once per open, failed or not (TreeAgreement):
-// one that stops before its walk ends (a missing file, a damaged record) has no say, and the others go
-// on instead of waiting for it; its error reaches them at the pipeline's next agreement.
-class SettleOnce {
+// Calls a distributed run's agreement once per open, failed or not: a process that stops before its walk
+// ends (a missing file, a damaged record) has no say, and the others go on instead of waiting for it; its
+// error reaches them at the pipeline's next agreement.
+class AgreeOnce {
 public:
-    explicit SettleOnce(TreeAgreement* agreement) : mAgreement(agreement) {}
-    ~SettleOnce()
+    explicit AgreeOnce(const TreeAgreement& agreement) : mAgreement(agreement) {}
+    ~AgreeOnce()
     {
         try {
-            settle();
+            agree(false, 0);
         } catch (...) {  // an error is already on its way out; the run ends with it
         }
     }
-    SettleOnce(const SettleOnce&) = delete;
-    SettleOnce& operator=(const SettleOnce&) = delete;
-    void settle()
+    AgreeOnce(const AgreeOnce&) = delete;
+    AgreeOnce& operator=(const AgreeOnce&) = delete;
+    void agree(bool walked, uint64_t digest)
     {
-        if (mAgreement && !mAgreement->settled) mAgreement->settle(false, 0);
+        if (!mAgreement || mDone) return;
+        mDone = true;
+        mAgreement(walked, digest);
     }
 
 private:
-    TreeAgreement* mAgreement;
+    const TreeAgreement& mAgreement;
+    bool mDone = false;
 };
 
 } // namespace
 
-std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName, TreeAgreement* agreement)
+std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string& gridName, const TreeAgreement& agreement)
 {
     static std::once_flag init;
     std::call_once(init, [] { openvdb::initialize(); });
-    SettleOnce settleOnce(agreement);
+    AgreeOnce agreeOnce(agreement);
 
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
@@ -764,8 +767,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
     const Stopwatch check;
-    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement);
-    settleOnce.settle();  // a tree this walk does not cover has no say
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
+    agreeOnce.agree(layout.checked, layout.digest);  // a tree this walk does not cover has no say
     const double checkSeconds = check.seconds();
 
     openvdb::GridBase::Ptr grid;

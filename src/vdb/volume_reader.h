@@ -18,7 +18,13 @@
 
 namespace vdb_isosimp {
 
-struct TreeAgreement;  // input_checks.h
+// The processes of a distributed run each walk every leaf record of their own copy of the file (each
+// decompresses leaves of it: a damaged record must be found where it is read), then agree that their
+// copies hold the same stored tree: called once per open with this process's digest (input_checks.h:
+// VdbGridLayout::digest; `walked` false when it stopped before its walk ended and has no say), it
+// throws on every process when all walked and the digests differ. Copies that differ would make a
+// mesh of neither file.
+using TreeAgreement = std::function<void(bool walked, uint64_t digest)>;
 
 struct VolumeInfo {
     std::string file;
@@ -44,11 +50,11 @@ public:
     // first float/double grid; Options::gridName): the file's structure, the
     // grid's type, class, transform and index bounding box are checked before any voxel is read
     // (input_checks.h); OpenVDB's own exceptions become InputError too.
-    // With an agreement (a distributed run's processes), the stored tree's digest is agreed on once,
-    // whatever happens (input_checks.h: TreeAgreement).
+    // With an agreement (a distributed run's processes), it is called exactly once, whatever happens,
+    // or the other processes would wait for this one.
     // @throw InputError naming the file and the problem.
     static std::unique_ptr<Volume> open(const std::string& path, const std::string& gridName,
-                                        TreeAgreement* agreement = nullptr);
+                                        const TreeAgreement& agreement = {});
     // A read-only view of a grid already in memory (the library's grid-in entry point): its voxel
     // buffers are never released. `label` names it in messages. @throw InputError as open() does.
     static std::unique_ptr<Volume> fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label);
