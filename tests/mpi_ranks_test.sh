@@ -197,6 +197,34 @@ for OTHER in "$W/other.vdb" "$W/v.vdb"; do
   echo "a different file on rank 1: exit $code, one line"
 done
 
+# Rank 1's copy damaged in one leaf record (the same stored tree, so the same digest), at a quarter of
+# the file (in rank 0's part of the shared walk) and at 60 % (in its own part): rank 1 walks every
+# record it decompresses, so either it reads that leaf and the run ends with one line from rank 1 and
+# nothing written, or it does not and the mesh is the undamaged file's, byte for byte.
+"$B/vdb_isosimp" "$W/v.vdb" --ratio 0.05 --slab-blocks 64 -q -o "$W/good.ply"
+for pct in 25 60; do
+  cp "$W/v.vdb" "$W/bad1.vdb"
+  size=$(stat -c %s "$W/bad1.vdb")
+  head -c 4000 /dev/zero | tr '\0' 'Z' | dd of="$W/bad1.vdb" bs=1 seek=$((size * pct / 100)) conv=notrunc status=none
+  rm -f "$W/one_bad.ply"
+  set +e
+  mpirun -np 2 -x OTHER="$W/bad1.vdb" -x EXE="$B/vdb_isosimp" "$W/rank1_reads.sh" "$W/v.vdb" --ratio 0.05 \
+    --slab-blocks 64 -q -o "$W/one_bad.ply" 2> "$W/one_bad.err"
+  code=$?
+  set -e
+  if [ $code = 0 ]; then
+    cmp "$W/one_bad.ply" "$W/good.ply" || fail "rank 1's copy damaged at $pct %: exit 0 with another mesh"
+    echo "rank 1's copy damaged at $pct %: the leaf is not rank 1's; the undamaged file's mesh"
+  else
+    ours=$(grep -c '^vdb_isosimp: ' "$W/one_bad.err" || true)
+    [ "$ours" = 1 ] || { cat "$W/one_bad.err"; fail "rank 1's copy damaged at $pct %: $ours lines of ours, not 1"; }
+    grep -q "^vdb_isosimp: .*bad1.vdb: grid '[a-z]*', leaf .*: compressed data is damaged .* (rank 1)$" "$W/one_bad.err" ||
+      { cat "$W/one_bad.err"; fail "rank 1's copy damaged at $pct %: the line does not name rank 1's file and leaf"; }
+    ls "$W"/one_bad.ply* > /dev/null 2>&1 && fail "rank 1's copy damaged at $pct %: output left behind"
+    echo "rank 1's copy damaged at $pct %: exit $code, one line: $(grep '^vdb_isosimp: ' "$W/one_bad.err")"
+  fi
+done
+
 # A killed rank: mpirun ends the others; nothing is written.
 "$B/make_volume" noise -n 160 -o "$W/big.vdb" > /dev/null
 mpirun -np 2 "$B/vdb_isosimp" "$W/big.vdb" --ratio 0.05 --slab-blocks 64 --threads 1 -q -o "$W/kill.ply" \

@@ -483,9 +483,11 @@ TEST(DamagedVdb, EveryOpenAgreesOnce)
     for (const std::string name : {"a.vdb", "missing.vdb", "cut.vdb", "bad.vdb"}) {
         int calls = 0;
         bool said = false;
-        const vdb_isosimp::TreeAgreement agreement = [&](bool walked, uint64_t) {
+        vdb_isosimp::TreeAgreement agreement;
+        agreement.agree = [&](bool walked, bool sound, uint64_t) {
             ++calls;
             said = walked;
+            return sound;
         };
         bool opened = false;
         std::string error;
@@ -503,12 +505,79 @@ TEST(DamagedVdb, EveryOpenAgreesOnce)
     }
     // An agreement that fails (the copies differ) fails the open, once.
     int calls = 0;
-    const vdb_isosimp::TreeAgreement differ = [&](bool, uint64_t) {
+    vdb_isosimp::TreeAgreement differ;
+    differ.agree = [&](bool, bool, uint64_t) -> bool {
         ++calls;
         throw vdb_isosimp::InputError("the copies differ");
     };
     EXPECT_THROW(vdb_isosimp::Volume::open(d + "/a.vdb", "", differ), vdb_isosimp::InputError);
     EXPECT_EQ(calls, 1);
+    differ.parts = 2;  // the same where the walk is shared
+    EXPECT_THROW(vdb_isosimp::Volume::open(d + "/a.vdb", "", differ), vdb_isosimp::InputError);
+    EXPECT_EQ(calls, 2);
+}
+
+TEST(DamagedVdb, ASharedWalkLeavesNoReadLeafUnwalked)
+{
+    // Two processes share the walk of the row grid's 40,000 leaf records: part 0 walks the first
+    // 20,000, part 1 the others, where leaf 35,000 (at x = 280000) is damaged in this copy.
+    const std::string d = scratch("shared_walk");
+    const auto [fa, bad] = rowFiles(d);
+    writeBytes(d + "/bad.vdb", bad);
+    const std::string damaged = "leaf [280000, 0, 0]: compressed data is damaged";
+    const auto share = [](size_t part, bool othersSound, int& calls, bool& mineSound) {
+        vdb_isosimp::TreeAgreement a;
+        a.part = part;
+        a.parts = 2;
+        a.agree = [&calls, &mineSound, othersSound](bool walked, bool sound, uint64_t) {
+            ++calls;
+            mineSound = walked && sound;
+            return mineSound && othersSound;
+        };
+        return a;
+    };
+    int calls = 0;
+    bool sound = false;
+    // Part 0 finds its part sound; the other process's part (its own copy) was sound too. The damaged
+    // record is walked where this process comes to read it, and only there.
+    {
+        const auto a = share(0, true, calls, sound);
+        auto v = vdb_isosimp::Volume::open(d + "/bad.vdb", "", a);
+        EXPECT_EQ(calls, 1);
+        EXPECT_TRUE(sound);
+        EXPECT_NO_THROW(v->keepLeaves([](const std::array<int32_t, 3>& o) { return o[0] < 200000; }));
+        vdb_isosimp::BlockSamples s;
+        EXPECT_NO_THROW(v->sample({8, 0, 0}, s));
+    }
+    {
+        const auto a = share(0, true, calls, sound);
+        auto v = vdb_isosimp::Volume::open(d + "/bad.vdb", "", a);
+        try {
+            v->keepLeaves({});  // every leaf: the damaged one too
+            ADD_FAILURE() << "the damaged record went unwalked";
+        } catch (const vdb_isosimp::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(damaged), std::string::npos) << e.what();
+        }
+    }
+    // Part 1 holds the damaged record: it says so, and every process walks every record, as one does.
+    calls = 0;
+    for (const bool othersSound : {true, false}) {
+        const auto a = share(1, othersSound, calls, sound);
+        try {
+            vdb_isosimp::Volume::open(d + "/bad.vdb", "", a);
+            ADD_FAILURE() << "opened";
+        } catch (const vdb_isosimp::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(damaged), std::string::npos) << e.what();
+        }
+        EXPECT_FALSE(sound);
+    }
+    EXPECT_EQ(calls, 2);
+    // Part 0 whose partner found a fault walks every record itself.
+    {
+        const auto a = share(0, false, calls, sound);
+        EXPECT_THROW(vdb_isosimp::Volume::open(d + "/bad.vdb", "", a), vdb_isosimp::InputError);
+        EXPECT_TRUE(sound);
+    }
 }
 
 // Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.

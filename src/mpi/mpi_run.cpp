@@ -157,16 +157,21 @@ MpiRun::~MpiRun()
 Result MpiRun::simplifyFile(const std::string& path, const Options& options, Progress* progress)
 {
     MpiChannel channel(mRank, mRanks);
-    // Every rank walks its own copy's leaf records; their trees must be one.
-    const TreeAgreement agreement = [](bool walked, uint64_t digest) {
-        // The largest of: "did not walk", the digest, its complement (so the smallest digest too).
-        const uint64_t mine[3] = {walked ? 0u : 1u, digest, ~digest};
-        uint64_t most[3] = {0, 0, 0};
-        check(MPI_Allreduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD), "allreduce");
+    // Each rank walks its part of the leaf records (and later those of the leaves it reads); their
+    // stored trees must be one.
+    TreeAgreement agreement;
+    agreement.part = size_t(mRank);
+    agreement.parts = size_t(mRanks);
+    agreement.agree = [](bool walked, bool sound, uint64_t digest) {
+        // The largest of: "did not walk", "not sound", the digest, its complement (so the smallest digest too).
+        const uint64_t mine[4] = {walked ? 0u : 1u, sound ? 0u : 1u, digest, ~digest};
+        uint64_t most[4] = {0, 0, 0, 0};
+        check(MPI_Allreduce(mine, most, 4, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD), "allreduce");
         // A mesh made of both would be neither file's. Every rank throws the same error.
-        if (most[0] == 0 && most[1] != ~most[2])
+        if (most[0] == 0 && most[2] != ~most[3])
             throw InputError("the ranks read different files under this path (their stored trees differ): the file "
                              "changed, or differs between machines");
+        return most[0] == 0 && most[1] == 0;
     };
     return simplifyVolume([&] { return Volume::open(path, options.gridName, agreement); }, path, options, progress, &channel);
 }

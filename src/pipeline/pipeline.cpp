@@ -85,6 +85,11 @@ public:
     void openVolume(const VolumeOpener& open);
     void chooseIso();
     std::array<double, 2> valueRange() const;
+    // Every rank meets the others' agreement on the value range once (chooseIso), a rank that failed
+    // before it too (failBeforeRange): the others would wait in it otherwise.
+    std::array<double, 2> agreeOnRange(std::array<double, 2> range, bool failed) const;
+    void failBeforeRange() const;
+    mutable bool mRangeAgreed = false;
     void listBlocks();
     void splitSlabs();
     void keepOwnLeaves();
@@ -211,10 +216,9 @@ void PipelineRun::chooseIso()
 {
     const double start = mClock.seconds();
     mCls.insideBelow = mInfo.levelSet;
-    if (mOpt.iso) {
-        mCls.iso = *mOpt.iso;
-    } else if (mInfo.levelSet) {
-        mCls.iso = 0.0;
+    if (mOpt.iso || mInfo.levelSet) {
+        mCls.iso = mOpt.iso ? *mOpt.iso : 0.0;
+        if (mRanks) agreeOnRange({0.0, 0.0}, false);  // the ranks' collective, met by every rank
     } else {
         const auto range = valueRange();
         mCls.iso = 0.5 * (range[0] + range[1]);
@@ -236,9 +240,20 @@ std::array<double, 2> PipelineRun::valueRange() const
     } catch (...) {
         failed = std::current_exception();
     }
-    range = mRanks->agreeRange(range, failed != nullptr);
+    range = agreeOnRange(range, failed != nullptr);
     if (failed) std::rethrow_exception(failed);
     return range;
+}
+
+std::array<double, 2> PipelineRun::agreeOnRange(std::array<double, 2> range, bool failed) const
+{
+    mRangeAgreed = true;
+    return mRanks->agreeRange(range, failed);
+}
+
+void PipelineRun::failBeforeRange() const
+{
+    if (mRanks && !mRangeAgreed) agreeOnRange({0.0, 0.0}, true);
 }
 
 void PipelineRun::listBlocks()
@@ -876,6 +891,7 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.agreeAmongRanks({});  // another rank failed first: agree() reports its message
         throw;
     } catch (const std::exception& e) {
+        run.failBeforeRange();
         run.agreeAmongRanks(e.what());
         throw;
     }

@@ -47,8 +47,9 @@ public:
     // counted for a face target); otherwise throws on every rank, on rank 0 the first failed rank's
     // message.
     virtual std::array<uint64_t, 2> agree(const std::string& error, uint64_t blocks, std::array<uint64_t, 2> counts) = 0;
-    // Called by every rank once when a fog grid's default iso-value is chosen, with the value range of
-    // its part of the leaves, or `failed` when reading them threw: returns the smallest and largest of
+    // Called by every rank once as the iso-value is chosen, with the value range of its part of the
+    // leaves where a fog grid's default iso-value needs it (else an empty one), or `failed` when
+    // reading them threw or the rank failed before (its open): returns the smallest and largest of
     // all ranks. Throws PeerFailed on a rank that did not fail when another did (agree() then
     // carries that rank's message to rank 0).
     virtual std::array<double, 2> agreeRange(std::array<double, 2> range, bool failed) = 0;

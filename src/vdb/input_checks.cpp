@@ -492,6 +492,19 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
 
 } // namespace
 
+struct LeafRecords {
+    std::string path, grid;
+    uint64_t fileSize, end;
+    uint32_t compression;
+    bool half;
+    uint64_t valueSize;
+    DelayedLoadSizes delayed;
+    std::vector<uint64_t> at;                         // where each record starts, then where they end
+    std::vector<std::array<int32_t, 3>> leafOrigins;  // in file order
+    std::vector<uint16_t> leafActive;
+    size_t first, last;  // the records this process walked
+};
+
 VdbFileEntries checkVdbFileStructure(const std::string& path)
 {
     FileEntries f = readFileEntries(path);
@@ -642,16 +655,17 @@ std::vector<uint64_t> leafStarts(const DelayedLoadSizes& d, size_t leaves, uint6
     return at;
 }
 
-// The leaf records walked in runs on all of the run's threads, each run by a reader of its own from
-// where `at` says it starts: true when every record is sound and starts where `at` says. On false the
-// records are walked again one after another, which finds the first fault and names it as always.
+// The leaf records [first, last) walked in runs on all of the run's threads, each run by a reader of its
+// own from where `at` says it starts: true when every record is sound and starts where `at` says. On
+// false the records are walked again one after another, which finds the first fault and names it as always.
 bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, const std::vector<uint64_t>& at,
-                      const VdbGridLayout& layout, uint32_t compression, bool half, uint64_t valueSize,
-                      const DelayedLoadSizes& delayed)
+                      size_t first, size_t last, const VdbGridLayout& layout, uint32_t compression, bool half,
+                      uint64_t valueSize, const DelayedLoadSizes& delayed)
 {
     constexpr size_t kRun = 16384;  // leaves a reader walks: a few MB of records
     std::atomic<bool> sound{true};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, at.size() - 1, kRun), [&](const tbb::blocked_range<size_t>& r) {
+    if (first >= last) return true;
+    tbb::parallel_for(tbb::blocked_range<size_t>(first, last, kRun), [&](const tbb::blocked_range<size_t>& r) {
         if (!sound) return;
         BoundedReader in(path, fileSize);
         in.setLimit(end);
@@ -690,8 +704,11 @@ uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at
 // Walks a grid's tree from its topology (where walkGridHeader leaves `in`) to the end of its last leaf
 // record: the topology node by node, then every leaf's record (walkLeaf) in the topology's leaf order.
 // `e` gives where the topology must end and the grid must end; a streamed entry learns them here.
+// With a share of several parts, this process walks its part of the records at once, and every part's
+// verdict decides whether all records are walked one after another (LeafWalkShare).
 void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t compression, bool half,
-              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout)
+              uint64_t valueSize, const DelayedLoadSizes& delayed, VdbGridLayout& layout,
+              const LeafWalkShare* share = nullptr)
 {
     const std::string& name = e.name;
     const bool locate = e.streamed && e.blockPos == 0;
@@ -714,9 +731,19 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     // starts: its millions of leaves are walked on all threads, the way they are read later.
     const std::vector<uint64_t> at =
         locate ? std::vector<uint64_t>{} : leafStarts(delayed, leaves, e.blockPos, e.endPos, compression, half, valueSize);
-    if (!at.empty() && at.back() == e.endPos &&
-        walkLeavesAtOnce(path, in.size(), e.endPos, at, layout, compression, half, valueSize, delayed)) {
+    const bool located = !at.empty() && at.back() == e.endPos;
+    const bool split = share && share->parts > 1 && located;
+    const size_t first = split ? leaves * share->part / share->parts : 0;
+    const size_t last = split ? leaves * (share->part + 1) / share->parts : leaves;
+    bool sound = located && walkLeavesAtOnce(path, in.size(), e.endPos, at, first, last, layout, compression, half,
+                                             valueSize, delayed);
+    if (split) sound = share->allSound(sound, treeDigest(layout, at));
+    if (sound) {
         in.seek(e.endPos);
+        if (split)
+            layout.unwalked = std::make_shared<const LeafRecords>(
+                LeafRecords{path, name, in.size(), e.endPos, compression, half, valueSize, delayed, at,
+                            layout.leafOrigins, layout.leafActive, first, last});
     } else {
         for (size_t i = 0; i < leaves; ++i) {
             const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, delayed);
@@ -730,6 +757,8 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
         damaged(path, "grid '" + name + "': leaf data ends at byte " + std::to_string(in.pos()) + ", the grid at " +
                           std::to_string(e.endPos));
     layout.digest = treeDigest(layout, at);
+    // Where the records could not be split, the whole walk's verdict (it got here: sound).
+    if (share && !split) share->allSound(true, layout.digest);
 }
 
 // A file written as a stream (io::Stream) states no grid offsets, and OpenVDB reads every grid in it,
@@ -772,7 +801,8 @@ void walkStreamedGrids(const std::string& path, BoundedReader& in, int32_t grids
 
 } // namespace
 
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName)
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f, const std::string& gridName,
+                               const LeafWalkShare* share)
 {
     VdbGridLayout layout;
     if (!f.checkable) return layout;
@@ -802,10 +832,45 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     uint32_t compression = 0;
     DelayedLoadSizes delayed;
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
-    walkTree(path, in, tree, compression, half, valueSize, delayed, layout);
+    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.checked = true;
     return layout;
+}
+
+void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::array<int32_t, 3>&)>& reads)
+{
+    std::vector<size_t> leaves;
+    for (size_t i = 0; i < r.leafOrigins.size(); ++i)
+        if ((i < r.first || i >= r.last) && reads(r.leafOrigins[i])) leaves.push_back(i);
+    VdbGridLayout layout;
+    layout.leafActive = r.leafActive;
+    // Each leaf from where its record starts, on all threads; the first fault in file order is named.
+    const auto fault = [&](BoundedReader& in, size_t i) -> std::string {
+        if (!in.seek(r.at[i])) return "the grid's data ends early";
+        std::string why = walkLeaf(in, i, layout, r.compression, r.half, r.valueSize, r.delayed);
+        if (why.empty() && in.pos() != r.at[i + 1]) why = "its size differs from the delayed-load metadata";
+        return why;
+    };
+    constexpr size_t kRun = 4096;
+    std::atomic<size_t> firstBad{leaves.size()};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), kRun), [&](const tbb::blocked_range<size_t>& b) {
+        BoundedReader in(r.path, r.fileSize);
+        in.setLimit(r.end);
+        for (size_t k = b.begin(); k != b.end() && k < firstBad.load(); ++k)
+            if (!in.ok() || !fault(in, leaves[k]).empty()) {
+                for (size_t seen = firstBad.load(); k < seen && !firstBad.compare_exchange_weak(seen, k);) {
+                }
+                return;
+            }
+    });
+    if (firstBad.load() == leaves.size()) return;
+    const size_t i = leaves[firstBad.load()];
+    BoundedReader in(r.path, r.fileSize);
+    in.setLimit(r.end);
+    const std::string why = in.ok() ? fault(in, i) : "cannot open file for reading";
+    throw InputError(r.path + ": grid '" + r.grid + "', leaf " + coordText(r.leafOrigins[i]) +
+                     ": compressed data is damaged (" + why + ")");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -7,6 +7,8 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -42,6 +44,9 @@ struct VdbFileEntries {
 // @throw InputError naming the file ("truncated or damaged OpenVDB file ...", or what is refused).
 VdbFileEntries checkVdbFileStructure(const std::string& path);
 
+// The stored records of a grid's leaves (input_checks.cpp).
+struct LeafRecords;
+
 // What checkVdbGridData learned about a grid's tree.
 struct VdbGridLayout {
     bool checked = false;                              // false: a layout left to OpenVDB
@@ -50,6 +55,23 @@ struct VdbGridLayout {
     // A hash of the leaves' origins, active counts and record positions: two copies of one stored tree
     // have the same digest (the processes of a distributed run compare them: Volume::open).
     uint64_t digest = 0;
+    // Where the processes of a distributed run shared the walk (LeafWalkShare): the records of the
+    // leaves this process did not walk, for walkKeptRecords once it knows which leaves it reads.
+    std::shared_ptr<const LeafRecords> unwalked;
+};
+
+// The processes of a distributed run share the walk of a grid's leaf records: where the file says where
+// every record starts, each walks part `part` of `parts` of them (in file order: the part of the leaves
+// a fog grid's value-range scan reads, Volume::valueRange), and one call learns whether every part was
+// sound (and compares the processes' digests: copies of one stored tree). If not, each walks every
+// record as one process does, which names the first fault the same way everywhere. A process still
+// walks every record it decompresses (walkKeptRecords): another process's walk of its own copy vouches
+// for nothing on this one.
+struct LeafWalkShare {
+    size_t part = 0, parts = 1;
+    // This process's verdict on its part and its digest in; true when every part was sound. Called
+    // once per check; where the records cannot be split, with the whole walk's verdict.
+    std::function<bool(bool sound, uint64_t digest)> allSound;
 };
 
 // Walks one float or double grid's stored tree before OpenVDB reads it: the topology node by node
@@ -61,7 +83,14 @@ struct VdbGridLayout {
 // (damaged compressed bytes) is left to the voxel reads (volume_reader.cpp).
 // @throw InputError: "PATH: truncated or damaged OpenVDB file (grid 'NAME': ...)", or for one leaf
 // "PATH: grid 'NAME', leaf [x, y, z]: compressed data is damaged (...)".
-VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName);
+// With a share, this process walks its part of the leaf records (LeafWalkShare).
+VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName,
+                               const LeafWalkShare* share = nullptr);
+
+// Walks the records of the leaves `reads` accepts (by origin) that this process's part of a shared walk
+// left out: before it decompresses them.
+// @throw InputError as checkVdbGridData does for a damaged leaf record.
+void walkKeptRecords(const LeafRecords& records, const std::function<bool(const std::array<int32_t, 3>&)>& reads);
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

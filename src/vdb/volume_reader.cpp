@@ -108,6 +108,10 @@ public:
     void keepLeaves(const std::function<bool(const std::array<int32_t, 3>&)>& keep) override
     {
         if (!mFromFile) return;  // a caller's grid stays whole
+        if (mUnwalked) {
+            walkKeptRecords(*mUnwalked, keep ? keep : [](const std::array<int32_t, 3>&) { return true; });
+            mUnwalked.reset();
+        }
         if (keep) dropLeaves([&](const openvdb::Coord& o) { return !keep({o.x(), o.y(), o.z()}); });
         layOutInSweepOrder();
     }
@@ -687,17 +691,17 @@ public:
     ~AgreeOnce()
     {
         try {
-            agree(false, 0);
+            agree(false, false, 0);
         } catch (...) {  // an error is already on its way out; the run ends with it
         }
     }
     AgreeOnce(const AgreeOnce&) = delete;
     AgreeOnce& operator=(const AgreeOnce&) = delete;
-    void agree(bool walked, uint64_t digest)
+    bool agree(bool walked, bool sound, uint64_t digest)
     {
-        if (!mAgreement || mDone) return;
+        if (!mAgreement.agree || mDone) return sound;
         mDone = true;
-        mAgreement(walked, digest);
+        return mAgreement.agree(walked, sound, digest);
     }
 
 private:
@@ -767,8 +771,10 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     // Before OpenVDB reads the tree: its topology and every leaf's record, as stored.
     const Stopwatch check;
-    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName());
-    agreeOnce.agree(layout.checked, layout.digest);  // a tree this walk does not cover has no say
+    LeafWalkShare share{agreement.part, agreement.parts,
+                        [&](bool sound, uint64_t digest) { return agreeOnce.agree(true, sound, digest); }};
+    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement.agree ? &share : nullptr);
+    agreeOnce.agree(false, false, 0);  // a tree this walk does not cover has no say
     const double checkSeconds = check.seconds();
 
     openvdb::GridBase::Ptr grid;
@@ -790,7 +796,9 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
-    return wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
+    std::unique_ptr<Volume> volume = wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
+    volume->mUnwalked = layout.unwalked;
+    return volume;
 }
 
 std::unique_ptr<Volume> Volume::fromGrid(openvdb::GridBase::ConstPtr grid, const std::string& label)

@@ -18,13 +18,21 @@
 
 namespace vdb_isosimp {
 
-// The processes of a distributed run each walk every leaf record of their own copy of the file (each
-// decompresses leaves of it: a damaged record must be found where it is read), then agree that their
-// copies hold the same stored tree: called once per open with this process's digest (input_checks.h:
-// VdbGridLayout::digest; `walked` false when it stopped before its walk ended and has no say), it
-// throws on every process when all walked and the digests differ. Copies that differ would make a
-// mesh of neither file.
-using TreeAgreement = std::function<void(bool walked, uint64_t digest)>;
+// The stored records of a grid's leaves that this process has not walked yet (input_checks.h).
+struct LeafRecords;
+
+// The processes of a distributed run share the walk of the leaf records (input_checks.h: LeafWalkShare):
+// each walks part `part` of `parts` of them, then `agree` is called exactly once per open with
+// whether this process walked its part (false: it stopped before, a missing file or a damaged
+// header, and has no say), whether the part was sound, and the digest of its stored tree
+// (VdbGridLayout::digest). It returns true when every process walked a sound part; false makes each
+// walk every record as one process does, which names a fault the same way everywhere. It throws on
+// every process when all walked and the digests differ: copies that differ would make a mesh of
+// neither file. A process walks the records of the leaves it keeps (keepLeaves) before it reads them.
+struct TreeAgreement {
+    size_t part = 0, parts = 1;
+    std::function<bool(bool walked, bool sound, uint64_t digest)> agree;
+};
 
 struct VolumeInfo {
     std::string file;
@@ -67,7 +75,9 @@ public:
     // Keeps the leaves `keep` accepts (by origin; empty: all of them), laid out in sweep order so that
     // their pages empty as extraction releases them, and deletes every other leaf (an MPI rank keeps
     // the leaves its own slabs sample, not the whole topology). Once, after blocks() and before any
-    // sample. A caller's grid is left as it is.
+    // sample. A caller's grid is left as it is. Where the open shared the walk of the leaf records
+    // among processes, the kept leaves' records this process did not walk are walked first.
+    // @throw InputError for a damaged record among them.
     virtual void keepLeaves(const std::function<bool(const std::array<int32_t, 3>& leafOrigin)>& keep) = 0;
     // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
     virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
@@ -126,6 +136,8 @@ public:
 
 protected:
     VolumeInfo mInfo;
+    // The records another process walked (TreeAgreement): keepLeaves walks those of the kept leaves.
+    std::shared_ptr<const LeafRecords> mUnwalked;
     bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
     std::atomic<uint64_t> mParked{0};
