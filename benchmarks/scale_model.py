@@ -8,7 +8,10 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
              _cut; and what no field times); every rank repeats it (serial). The block list, the cut and the
              walk of the file's leaf records (seconds_check, of seconds_open) run on all of a process's
              threads: in the threads' model and the bound, all but their serial share (BLOCKS_SERIAL,
-             CUT_SERIAL, CHECK_SERIAL) is divided among the threads. For
+             CUT_SERIAL, CHECK_SERIAL) is divided among the threads. The ranks share the walk of the
+             leaf records (LeafWalkShare): each walks its Nth before OpenVDB reads the tree and, after the
+             cut, the records of the leaves it keeps that another rank walked, so a rank walks about 2/R of
+             them (R ranks; all of them on one or two); the topology's walk (CHECK_SERIAL) each repeats. For
              a face target, counting the faces: each rank counts its own slabs (divided by W). Laying
              out the leaves (seconds_layout): each rank its own slabs' (divided by W; the pass that
              deletes the other leaves, which every rank makes, is not in the model: not timed apart,
@@ -90,8 +93,13 @@ def model(report, wall, even=False):
     layout = report.get("seconds_layout", 0.0)  # each rank lays out its own slabs' leaves
     layout += report.get("seconds_samplers", 0.0)  # and counts which of its blocks read which leaf
     setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count - layout)
+    leaf_walk = report.get("seconds_check", 0.0) * (1 - CHECK_SERIAL)
     spread = (report.get("seconds_blocks", 0.0) * (1 - BLOCKS_SERIAL) + report.get("seconds_cut", 0.0) * (1 - CUT_SERIAL) +
-              report.get("seconds_check", 0.0) * (1 - CHECK_SERIAL))
+              leaf_walk)
+
+    def walk_share(ranks):
+        # Of the leaf records' walk, what one of `ranks` ranks walks: its part, and its kept leaves' records.
+        return min(1.0, 2.0 / ranks)
 
     def serial(l, r):
         if r - l == 1:
@@ -124,14 +132,15 @@ def model(report, wall, even=False):
         ranks, ranks_path = parallel(0, slabs, 0, w)
         threads, threads_path = threads_tree(node, slabs, w)
         threads_final = final - scan + scan / w
-        t = start + ranks + final
+        t = start - leaf_walk * (1 - walk_share(w)) + ranks + final
         tt = threads_start + threads + threads_final
         tb = threads_start + schedule_bound(node, slabs, w) + threads_final
         # Ranks of RANK_THREADS threads (fewer workers: one process): the set-up's threaded parts and
         # the final pass's on a rank's threads, each rank's subtree as one process runs it.
         per = min(w, RANK_THREADS)
         hybrid_tree, hybrid_path = parallel(0, slabs, 0, w // per, per)
-        th = start - spread + spread / per + hybrid_tree + final - scan + scan / per
+        th = (start - spread + (spread - leaf_walk) / per + leaf_walk * walk_share(w // per) / per + hybrid_tree + final -
+              scan + scan / per)
         rows.append((w, t, one / t, tt, one / tt, tb, one / tb, th, one / th))
         if w == PATH_WORKERS:
             paths = ranks_path, threads_path, hybrid_path

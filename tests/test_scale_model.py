@@ -116,6 +116,19 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[1][2], 1.0)
         self.assertAlmostEqual(by_workers[1][4], 1.0)
 
+    def test_leaf_walk_shared_among_ranks(self):
+        # 1 s of checking, CHECK_SERIAL of it the topology every rank walks: of the rest, the leaf
+        # records, a rank walks its part and its kept leaves' (2/R): all of it on 2 ranks, half on 4.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        rep["seconds_check"] = 1.0
+        rep["seconds_blocks"] = 0.4
+        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        by_workers = {row[0]: row for row in rows}
+        shared = 1.0 - scale_model.CHECK_SERIAL
+        self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
+        self.assertAlmostEqual(by_workers[4][1], setup - shared / 2 + 4.0 + final)
+        self.assertAlmostEqual(by_workers[1][2], 1.0)
+
 
 class MixedModel(unittest.TestCase):
     def test_a_subtree_on_threads(self):
