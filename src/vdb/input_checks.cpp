@@ -106,7 +106,8 @@ private:
     bool fill()
     {
         if (mWin.empty()) mWin.resize(kWindow);
-        const uint64_t want = std::min<uint64_t>(kWindow, mSize - mPos);
+        // No further than the limit: a walk of a few records apart reads those, not a window past them.
+        const uint64_t want = std::min<uint64_t>(kWindow, mLimit - std::min(mLimit, mPos));
         uint64_t got = 0;
         while (got < want) {
             const ssize_t r = ::pread(mFd, mWin.data() + got, size_t(want - got), off_t(mPos + got));
@@ -494,7 +495,7 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
 
 struct LeafRecords {
     std::string path, grid;
-    uint64_t fileSize, end;
+    uint64_t fileSize;
     uint32_t compression;
     bool half;
     uint64_t valueSize;
@@ -742,7 +743,7 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
         in.seek(e.endPos);
         if (split)
             layout.unwalked = std::make_shared<const LeafRecords>(
-                LeafRecords{path, name, in.size(), e.endPos, compression, half, valueSize, delayed, at,
+                LeafRecords{path, name, in.size(), compression, half, valueSize, delayed, at,
                             layout.leafOrigins, layout.leafActive, first, last});
     } else {
         for (size_t i = 0; i < leaves; ++i) {
@@ -845,8 +846,14 @@ void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::a
         if ((i < r.first || i >= r.last) && reads(r.leafOrigins[i])) leaves.push_back(i);
     VdbGridLayout layout;
     layout.leafActive = r.leafActive;
-    // Each leaf from where its record starts, on all threads; the first fault in file order is named.
-    const auto fault = [&](BoundedReader& in, size_t i) -> std::string {
+    // Each leaf from where its record starts, on all threads, reading no further than the end of its
+    // run of consecutive kept records; the first fault in file order is named.
+    std::vector<uint64_t> runEnd(leaves.size());
+    for (size_t k = leaves.size(); k-- > 0;)
+        runEnd[k] = k + 1 < leaves.size() && leaves[k + 1] == leaves[k] + 1 ? runEnd[k + 1] : r.at[leaves[k] + 1];
+    const auto fault = [&](BoundedReader& in, size_t k) -> std::string {
+        const size_t i = leaves[k];
+        in.setLimit(runEnd[k]);
         if (!in.seek(r.at[i])) return "the grid's data ends early";
         std::string why = walkLeaf(in, i, layout, r.compression, r.half, r.valueSize, r.delayed);
         if (why.empty() && in.pos() != r.at[i + 1]) why = "its size differs from the delayed-load metadata";
@@ -856,9 +863,8 @@ void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::a
     std::atomic<size_t> firstBad{leaves.size()};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), kRun), [&](const tbb::blocked_range<size_t>& b) {
         BoundedReader in(r.path, r.fileSize);
-        in.setLimit(r.end);
         for (size_t k = b.begin(); k != b.end() && k < firstBad.load(); ++k)
-            if (!in.ok() || !fault(in, leaves[k]).empty()) {
+            if (!in.ok() || !fault(in, k).empty()) {
                 for (size_t seen = firstBad.load(); k < seen && !firstBad.compare_exchange_weak(seen, k);) {
                 }
                 return;
@@ -867,8 +873,7 @@ void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::a
     if (firstBad.load() == leaves.size()) return;
     const size_t i = leaves[firstBad.load()];
     BoundedReader in(r.path, r.fileSize);
-    in.setLimit(r.end);
-    const std::string why = in.ok() ? fault(in, i) : "cannot open file for reading";
+    const std::string why = in.ok() ? fault(in, firstBad.load()) : "cannot open file for reading";
     throw InputError(r.path + ": grid '" + r.grid + "', leaf " + coordText(r.leafOrigins[i]) +
                      ": compressed data is damaged (" + why + ")");
 }
