@@ -392,6 +392,18 @@ public:
         using Range = std::array<double, 2>;
         const size_t first = leaves.size() * part / parts, last = leaves.size() * (part + 1) / parts;
         if (first >= last) return {lo, hi};
+        if (mUnwalked) {
+            // The part a shared walk checked is this part in the file's order, which is the tree's; any
+            // leaf of the part outside it is walked here, before it is read.
+            std::vector<std::array<int32_t, 3>> mine;
+            mine.reserve(last - first);
+            for (size_t i = first; i < last; ++i) {
+                const openvdb::Coord o = leaves[i]->origin();
+                mine.push_back({o.x(), o.y(), o.z()});
+            }
+            std::sort(mine.begin(), mine.end());
+            walkKeptRecords(*mUnwalked, [&](const std::array<int32_t, 3>& o) { return std::binary_search(mine.begin(), mine.end(), o); });
+        }
         const Range r = tbb::parallel_reduce(
             tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
