@@ -495,16 +495,28 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
 
 struct LeafRecords {
     std::string path, grid;
-    uint64_t fileSize;
-    uint32_t compression;
-    bool half;
-    uint64_t valueSize;
-    DelayedLoadSizes delayed;
-    std::vector<uint64_t> at;                         // where each record starts, then where they end
-    std::vector<std::array<int32_t, 3>> leafOrigins;  // in file order
-    std::vector<uint16_t> leafActive;
-    size_t first, last;  // the records this process walked
+    uint64_t fileSize = 0;
+    uint32_t compression = 0;
+    bool half = false;
+    uint64_t valueSize = 0;
+    DelayedLoadSizes delayed;    // the codes only
+    std::vector<uint64_t> at;    // where each record starts, then where they end
+    VdbGridLayout layout;        // the leaves' active counts
+    uint64_t order = 0;          // the leaves' origins in file order, hashed (leafOrderHash)
+    size_t first = 0, last = 0;  // the records this process walked
 };
+
+namespace {
+
+void addToLeafOrder(uint64_t& h, const std::array<int32_t, 3>& o)
+{
+    for (const uint64_t w : {uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]), uint64_t(uint32_t(o[2]))}) {
+        h = (h ^ w) * 0x9E3779B97F4A7C15ull;
+        h ^= h >> 29;
+    }
+}
+
+} // namespace
 
 VdbFileEntries checkVdbFileStructure(const std::string& path)
 {
@@ -629,7 +641,7 @@ std::string walkLeaf(BoundedReader& in, size_t i, const VdbGridLayout& layout, u
         if ((compression & openvdb::io::COMPRESS_ACTIVE_MASK) && delayed.codes[i] != rec.code)
             return "its code differs from the delayed-load metadata";
         if ((compression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP)) && rec.hasChunk &&
-            uint64_t(delayed.sizes[i]) != rec.chunkBytes)
+            !delayed.sizes.empty() && uint64_t(delayed.sizes[i]) != rec.chunkBytes)
             return "its size differs from the delayed-load metadata";
     }
     return "";
@@ -730,21 +742,18 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (!in.seek(e.blockPos)) damaged(path, "grid '" + name + "' ends early");
     // A file with offsets and delayed-load metadata (what OpenVDB writes) says where every record
     // starts: its millions of leaves are walked on all threads, the way they are read later.
-    const std::vector<uint64_t> at =
+    std::vector<uint64_t> at =
         locate ? std::vector<uint64_t>{} : leafStarts(delayed, leaves, e.blockPos, e.endPos, compression, half, valueSize);
+    const uint64_t digest = treeDigest(layout, at);
     const bool located = !at.empty() && at.back() == e.endPos;
     const bool split = share && share->parts > 1 && located;
     const size_t first = split ? leaves * share->part / share->parts : 0;
     const size_t last = split ? leaves * (share->part + 1) / share->parts : leaves;
     bool sound = located && walkLeavesAtOnce(path, in.size(), e.endPos, at, first, last, layout, compression, half,
                                              valueSize, delayed);
-    if (split) sound = share->allSound(sound, treeDigest(layout, at));
+    if (split) sound = share->allSound(sound, digest);
     if (sound) {
         in.seek(e.endPos);
-        if (split)
-            layout.unwalked = std::make_shared<const LeafRecords>(
-                LeafRecords{path, name, in.size(), compression, half, valueSize, delayed, at,
-                            layout.leafOrigins, layout.leafActive, first, last});
     } else {
         for (size_t i = 0; i < leaves; ++i) {
             const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, delayed);
@@ -757,9 +766,32 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (in.pos() != e.endPos)
         damaged(path, "grid '" + name + "': leaf data ends at byte " + std::to_string(in.pos()) + ", the grid at " +
                           std::to_string(e.endPos));
-    layout.digest = treeDigest(layout, at);
+    layout.digest = digest;
+    layout.leafCount = leaves;
     // Where the records could not be split, the whole walk's verdict (it got here: sound).
-    if (share && !split) share->allSound(true, layout.digest);
+    if (share && !split) share->allSound(true, digest);
+    if (split && sound) {
+        // What KeptRecordsWalk needs, moved rather than copied (a rank's set-up holds the whole topology
+        // then): the record starts, the leaves' active counts, the codes. Not the origins (the tree
+        // OpenVDB reads lists them in the same order: a hash checks it) nor the chunk sizes (the starts
+        // follow from them, and a record that ends elsewhere is caught).
+        auto r = std::make_shared<LeafRecords>();
+        r->path = path;
+        r->grid = name;
+        r->fileSize = in.size();
+        r->compression = compression;
+        r->half = half;
+        r->valueSize = valueSize;
+        r->delayed.present = delayed.present;
+        r->delayed.codes = delayed.codes;
+        r->at = std::move(at);
+        for (const auto& o : layout.leafOrigins) addToLeafOrder(r->order, o);
+        std::vector<std::array<int32_t, 3>>().swap(layout.leafOrigins);
+        r->layout.leafActive = std::move(layout.leafActive);
+        r->first = first;
+        r->last = last;
+        layout.unwalked = std::move(r);
+    }
 }
 
 // A file written as a stream (io::Stream) states no grid offsets, and OpenVDB reads every grid in it,
@@ -839,29 +871,35 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     return layout;
 }
 
-void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::array<int32_t, 3>&)>& reads)
+void KeptRecordsWalk::leaf(const std::array<int32_t, 3>& origin, bool reads)
 {
-    std::vector<size_t> leaves;
-    for (size_t i = 0; i < r.leafOrigins.size(); ++i)
-        if ((i < r.first || i >= r.last) && reads(r.leafOrigins[i])) leaves.push_back(i);
-    VdbGridLayout layout;
-    layout.leafActive = r.leafActive;
+    const size_t i = mLeaves++;
+    addToLeafOrder(mOrder, origin);
+    if (reads && (i < mRecords.first || i >= mRecords.last)) mRead.push_back({i, origin});
+}
+
+void KeptRecordsWalk::walk()
+{
+    const LeafRecords& r = mRecords;
+    if (mLeaves + 1 != r.at.size() || mOrder != r.order)
+        throw InputError(r.path + ": truncated or damaged OpenVDB file (grid '" + r.grid +
+                         "': its leaves are not the stored ones in the stored order)");
     // Each leaf from where its record starts, on all threads, reading no further than the end of its
     // run of consecutive kept records; the first fault in file order is named.
-    std::vector<uint64_t> runEnd(leaves.size());
-    for (size_t k = leaves.size(); k-- > 0;)
-        runEnd[k] = k + 1 < leaves.size() && leaves[k + 1] == leaves[k] + 1 ? runEnd[k + 1] : r.at[leaves[k] + 1];
+    std::vector<uint64_t> runEnd(mRead.size());
+    for (size_t k = mRead.size(); k-- > 0;)
+        runEnd[k] = k + 1 < mRead.size() && mRead[k + 1].first == mRead[k].first + 1 ? runEnd[k + 1] : r.at[mRead[k].first + 1];
     const auto fault = [&](BoundedReader& in, size_t k) -> std::string {
-        const size_t i = leaves[k];
+        const size_t i = mRead[k].first;
         in.setLimit(runEnd[k]);
         if (!in.seek(r.at[i])) return "the grid's data ends early";
-        std::string why = walkLeaf(in, i, layout, r.compression, r.half, r.valueSize, r.delayed);
+        std::string why = walkLeaf(in, i, r.layout, r.compression, r.half, r.valueSize, r.delayed);
         if (why.empty() && in.pos() != r.at[i + 1]) why = "its size differs from the delayed-load metadata";
         return why;
     };
     constexpr size_t kRun = 4096;
-    std::atomic<size_t> firstBad{leaves.size()};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), kRun), [&](const tbb::blocked_range<size_t>& b) {
+    std::atomic<size_t> firstBad{mRead.size()};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mRead.size(), kRun), [&](const tbb::blocked_range<size_t>& b) {
         BoundedReader in(r.path, r.fileSize);
         for (size_t k = b.begin(); k != b.end() && k < firstBad.load(); ++k)
             if (!in.ok() || !fault(in, k).empty()) {
@@ -870,11 +908,11 @@ void walkKeptRecords(const LeafRecords& r, const std::function<bool(const std::a
                 return;
             }
     });
-    if (firstBad.load() == leaves.size()) return;
-    const size_t i = leaves[firstBad.load()];
+    const size_t bad = firstBad.load();
+    if (bad == mRead.size()) return;
     BoundedReader in(r.path, r.fileSize);
-    const std::string why = in.ok() ? fault(in, firstBad.load()) : "cannot open file for reading";
-    throw InputError(r.path + ": grid '" + r.grid + "', leaf " + coordText(r.leafOrigins[i]) +
+    const std::string why = in.ok() ? fault(in, bad) : "cannot open file for reading";
+    throw InputError(r.path + ": grid '" + r.grid + "', leaf " + coordText(mRead[bad].second) +
                      ": compressed data is damaged (" + why + ")");
 }
 

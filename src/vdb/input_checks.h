@@ -50,13 +50,14 @@ struct LeafRecords;
 // What checkVdbGridData learned about a grid's tree.
 struct VdbGridLayout {
     bool checked = false;                              // false: a layout left to OpenVDB
-    std::vector<std::array<int32_t, 3>> leafOrigins;   // in file order
+    size_t leafCount = 0;
+    std::vector<std::array<int32_t, 3>> leafOrigins;   // in file order (moved to `unwalked` where there is one)
     std::vector<uint16_t> leafActive;                  // (during the walk) active voxels per leaf
     // A hash of the leaves' origins, active counts and record positions: two copies of one stored tree
     // have the same digest (the processes of a distributed run compare them: Volume::open).
     uint64_t digest = 0;
     // Where the processes of a distributed run shared the walk (LeafWalkShare): the records of the
-    // leaves this process did not walk, for walkKeptRecords once it knows which leaves it reads.
+    // leaves this process did not walk, for KeptRecordsWalk once it knows which leaves it reads.
     std::shared_ptr<const LeafRecords> unwalked;
 };
 
@@ -65,7 +66,7 @@ struct VdbGridLayout {
 // a fog grid's value-range scan reads, Volume::valueRange), and one call learns whether every part was
 // sound (and compares the processes' digests: copies of one stored tree). If not, each walks every
 // record as one process does, which names the first fault the same way everywhere. A process still
-// walks every record it decompresses (walkKeptRecords): another process's walk of its own copy vouches
+// walks every record it decompresses (KeptRecordsWalk): another process's walk of its own copy vouches
 // for nothing on this one.
 struct LeafWalkShare {
     size_t part = 0, parts = 1;
@@ -87,10 +88,23 @@ struct LeafWalkShare {
 VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& entries, const std::string& gridName,
                                const LeafWalkShare* share = nullptr);
 
-// Walks the records of the leaves `reads` accepts (by origin) that this process's part of a shared walk
-// left out: before it decompresses them.
-// @throw InputError as checkVdbGridData does for a damaged leaf record.
-void walkKeptRecords(const LeafRecords& records, const std::function<bool(const std::array<int32_t, 3>&)>& reads);
+// Walks the records of the leaves a process reads that its part of a shared walk left out, before it
+// decompresses them: every leaf of the tree as OpenVDB read it goes through leaf(), in the tree's order
+// (the file's: the records keep no origins, only a hash of them in that order), then walk().
+class KeptRecordsWalk {
+public:
+    explicit KeptRecordsWalk(const LeafRecords& records) : mRecords(records) {}
+    void leaf(const std::array<int32_t, 3>& origin, bool reads);
+    // @throw InputError as checkVdbGridData does for a damaged leaf record, or for a tree whose leaves
+    // are not the stored ones in the stored order.
+    void walk();
+
+private:
+    const LeafRecords& mRecords;
+    size_t mLeaves = 0;
+    uint64_t mOrder = 0;
+    std::vector<std::pair<size_t, std::array<int32_t, 3>>> mRead;  // file index, origin
+};
 
 // Index bounding box [min, max] of the active voxels: every coordinate must leave room for the block
 // one leaf below and the sample one voxel above within the vertex-key range (edge_key.h).

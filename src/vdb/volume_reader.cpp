@@ -109,7 +109,13 @@ public:
     {
         if (!mFromFile) return;  // a caller's grid stays whole
         if (mUnwalked) {
-            walkKeptRecords(*mUnwalked, keep ? keep : [](const std::array<int32_t, 3>&) { return true; });
+            KeptRecordsWalk walk(*mUnwalked);
+            for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) {
+                const openvdb::Coord o = it->origin();
+                const std::array<int32_t, 3> origin{o.x(), o.y(), o.z()};
+                walk.leaf(origin, !keep || keep(origin));
+            }
+            walk.walk();
             mUnwalked.reset();
         }
         if (keep) dropLeaves([&](const openvdb::Coord& o) { return !keep({o.x(), o.y(), o.z()}); });
@@ -393,16 +399,14 @@ public:
         const size_t first = leaves.size() * part / parts, last = leaves.size() * (part + 1) / parts;
         if (first >= last) return {lo, hi};
         if (mUnwalked) {
-            // The part a shared walk checked is this part in the file's order, which is the tree's; any
-            // leaf of the part outside it is walked here, before it is read.
-            std::vector<std::array<int32_t, 3>> mine;
-            mine.reserve(last - first);
-            for (size_t i = first; i < last; ++i) {
+            // The part a shared walk checked is this part of the leaves in the file's order, which is
+            // the tree's: checked, and any leaf of the part outside it walked here, before it is read.
+            KeptRecordsWalk walk(*mUnwalked);
+            for (size_t i = 0; i < leaves.size(); ++i) {
                 const openvdb::Coord o = leaves[i]->origin();
-                mine.push_back({o.x(), o.y(), o.z()});
+                walk.leaf({o.x(), o.y(), o.z()}, i >= first && i < last);
             }
-            std::sort(mine.begin(), mine.end());
-            walkKeptRecords(*mUnwalked, [&](const std::array<int32_t, 3>& o) { return std::binary_search(mine.begin(), mine.end(), o); });
+            walk.walk();
         }
         const Range r = tbb::parallel_reduce(
             tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
@@ -798,10 +802,10 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + oneLine(e.what()) + ")");
     }
     if (!grid) throw InputError(path + ": cannot read grid '" + meta->getName() + "'");
-    if (layout.checked && grid->baseTree().leafCount() != layout.leafOrigins.size())
+    if (layout.checked && grid->baseTree().leafCount() != layout.leafCount)
         throw InputError(path + ": truncated or damaged OpenVDB file (grid '" + meta->getName() + "': " +
                          std::to_string(grid->baseTree().leafCount()) + " leaves read, " +
-                         std::to_string(layout.leafOrigins.size()) + " stored)");
+                         std::to_string(layout.leafCount) + " stored)");
     try {
         checkTransform(grid->transform());
     } catch (const InputError& e) {
