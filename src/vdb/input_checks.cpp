@@ -502,7 +502,7 @@ struct LeafRecords {
     DelayedLoadSizes delayed;    // the codes only
     std::vector<uint64_t> at;    // where each record starts, then where they end
     VdbGridLayout layout;        // the leaves' active counts
-    uint64_t order = 0;          // the leaves' origins in file order, hashed (leafOrderHash)
+    uint64_t order = 0;          // the leaves' origins in file order, hashed (addToLeafOrder)
     size_t first = 0, last = 0;  // the records this process walked
 };
 
