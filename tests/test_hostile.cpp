@@ -418,9 +418,15 @@ TEST(Interrupt, Raw2vdbStopsAndLeavesNothing)
     const std::string d = freshDir("interrupt_raw2vdb");
     largeRaw(d);
     for (int sig : {SIGINT, SIGTERM}) {
-        const Interrupted r =
+        Interrupted r =
             interrupt(d, {RAW2VDB_EXE, "big.raw", "--dims", "256,256,256", "--type", "f32", "-q", "-o", "out.vdb"}, sig, 0.3);
-        if (r.code == -2000) GTEST_SKIP() << "conversion finished within 0.3 s";
+        if (r.code == -sig) {
+            // Still loading its libraries (a sanitizer build on a busy machine): the default action
+            // applied, before any file was made. Once more, later.
+            EXPECT_EQ(leftovers(d), "") << "files left behind";
+            r = interrupt(d, {RAW2VDB_EXE, "big.raw", "--dims", "256,256,256", "--type", "f32", "-q", "-o", "out.vdb"}, sig, 1.0);
+        }
+        if (r.code == -2000) GTEST_SKIP() << "conversion finished before the signal";
         EXPECT_EQ(r.code, 128 + sig) << r.err;
         EXPECT_LT(r.stopSeconds, 1.0);
         EXPECT_FALSE(exists(d + "/out.vdb"));
