@@ -508,12 +508,17 @@ struct LeafRecords {
 
 namespace {
 
+// One word into a hash (multiply and fold): the stored tree's digest and the leaves' order.
+void mixInto(uint64_t& h, uint64_t w)
+{
+    h = (h ^ w) * 0x9E3779B97F4A7C15ull;
+    h ^= h >> 29;
+}
+
 void addToLeafOrder(uint64_t& h, const std::array<int32_t, 3>& o)
 {
-    for (const uint64_t w : {uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]), uint64_t(uint32_t(o[2]))}) {
-        h = (h ^ w) * 0x9E3779B97F4A7C15ull;
-        h ^= h >> 29;
-    }
+    mixInto(h, uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]));
+    mixInto(h, uint64_t(uint32_t(o[2])));
 }
 
 } // namespace
@@ -549,6 +554,13 @@ uint64_t popcount(const std::vector<uint64_t>& words)
 std::string coordText(const std::array<int32_t, 3>& c)
 {
     return "[" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + "]";
+}
+
+// A leaf's record that the walk found unsound: the same line wherever the walk finds it.
+InputError damagedLeaf(const std::string& path, const std::string& grid, const std::array<int32_t, 3>& origin,
+                       const std::string& why)
+{
+    return InputError(path + ": grid '" + grid + "', leaf " + coordText(origin) + ": compressed data is damaged (" + why + ")");
 }
 
 struct TopologyWalk {
@@ -701,16 +713,12 @@ bool walkLeavesAtOnce(const std::string& path, uint64_t fileSize, uint64_t end, 
 uint64_t treeDigest(const VdbGridLayout& layout, const std::vector<uint64_t>& at)
 {
     uint64_t h = at.size();
-    const auto add = [&h](uint64_t w) {
-        h = (h ^ w) * 0x9E3779B97F4A7C15ull;
-        h ^= h >> 29;
-    };
     for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
         const auto& o = layout.leafOrigins[i];
-        add(uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]));
-        add(uint64_t(uint32_t(o[2])) << 32 | layout.leafActive[i]);
+        mixInto(h, uint64_t(uint32_t(o[0])) << 32 | uint32_t(o[1]));
+        mixInto(h, uint64_t(uint32_t(o[2])) << 32 | layout.leafActive[i]);
     }
-    for (uint64_t a : at) add(a);
+    for (uint64_t a : at) mixInto(h, a);
     return h;
 }
 
@@ -757,9 +765,7 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     } else {
         for (size_t i = 0; i < leaves; ++i) {
             const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, delayed);
-            if (!why.empty())
-                throw InputError(path + ": grid '" + name + "', leaf " + coordText(layout.leafOrigins[i]) +
-                                 ": compressed data is damaged (" + why + ")");
+            if (!why.empty()) throw damagedLeaf(path, name, layout.leafOrigins[i], why);
         }
     }
     if (locate) e.endPos = in.pos();
@@ -912,8 +918,7 @@ void KeptRecordsWalk::walk()
     if (bad == mRead.size()) return;
     BoundedReader in(r.path, r.fileSize);
     const std::string why = in.ok() ? fault(in, bad) : "cannot open file for reading";
-    throw InputError(r.path + ": grid '" + r.grid + "', leaf " + coordText(mRead[bad].second) +
-                     ": compressed data is damaged (" + why + ")");
+    throw damagedLeaf(r.path, r.grid, mRead[bad].second, why);
 }
 
 // ---------------------------------------------------------------------------------------------
