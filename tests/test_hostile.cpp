@@ -311,10 +311,7 @@ INSTANTIATE_TEST_SUITE_P(Table, Hostile, ::testing::ValuesIn(hostileCases()),
 // ---------------------------------------------------------------------------------------------
 // Interruption
 
-// Starts `exe args` in `dir`, sends `sig` after `delay`, returns (exit status, seconds from the
-// signal to the exit). stderr goes to dir/stderr.log. With `afterHandlers` the delay counts from the
-// moment the program catches `sig` (its SigCgt in /proc), not from its start: loading the shared
-// libraries alone takes over a second on a cold, busy machine, and a signal then meets no handler.
+// What interrupt() saw.
 struct Interrupted {
     int code = -1;
     double stopSeconds = 0;
@@ -332,6 +329,10 @@ bool catches(pid_t pid, int sig)
     return false;
 }
 
+// Starts `exe args` in `dir`, sends `sig` after `delay`, returns (exit status, seconds from the
+// signal to the exit). stderr goes to dir/stderr.log. With `afterHandlers` the delay counts from the
+// moment the program catches `sig` (its SigCgt in /proc), not from its start: loading the shared
+// libraries alone takes over a second on a cold, busy machine, and a signal then meets no handler.
 Interrupted interrupt(const std::string& dir, const std::vector<std::string>& argv, int sig, double delay,
                       bool afterHandlers = false)
 {
@@ -348,8 +349,10 @@ Interrupted interrupt(const std::string& dir, const std::vector<std::string>& ar
     }
     Interrupted r;
     int status = 0;
+    // The program ended before the signal (before it caught it, or within the delay): r.code -2000.
+    const auto ended = [&] { return ::waitpid(pid, &status, WNOHANG) == pid; };
     for (int waited = 0; afterHandlers && !catches(pid, sig); ++waited) {
-        if (::waitpid(pid, &status, WNOHANG) == pid) {  // ended before it caught the signal
+        if (ended()) {
             r.code = -2000;
             return r;
         }
@@ -362,7 +365,7 @@ Interrupted interrupt(const std::string& dir, const std::vector<std::string>& ar
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(delay));
-    if (::waitpid(pid, &status, WNOHANG) == pid) {  // finished before the signal: the volume is too small
+    if (ended()) {  // the volume is too small
         r.code = -2000;
         return r;
     }
@@ -402,11 +405,12 @@ TEST_P(Interrupt, StopsWithinOneSecondAndLeavesNothing)
     ASSERT_FALSE(vol.empty());
     const std::string d = freshDir("interrupt_" + std::to_string(sig) + "_" + std::to_string(int(delay * 10)));
     // The earliest signal tests the start itself; the others come that long after the handlers are in.
+    const bool atStart = delay < 0.2;
     const Interrupted r =
-        interrupt(d, {VDB_ISOSIMP_EXE, vol, "-q", "-r", "0.1", "-o", "out.ply", "--report", "r.json"}, sig, delay, delay >= 0.2);
+        interrupt(d, {VDB_ISOSIMP_EXE, vol, "-q", "-r", "0.1", "-o", "out.ply", "--report", "r.json"}, sig, delay, !atStart);
     ASSERT_NE(r.code, -2000) << "the run ended before the signal: use a larger volume";
     EXPECT_LT(r.stopSeconds, 1.0);
-    if (delay < 0.2 && r.code == -sig) {
+    if (atStart && r.code == -sig) {
         // Before main installs its handlers (libraries still loading) the default action applies:
         // the process dies by the signal, before it could have created any file.
     } else {
