@@ -123,6 +123,18 @@ std::string dimsString(const std::array<uint64_t, 3>& d)
     return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
 }
 
+// Where the data starts when a header says it fills the data file's end (NRRD `byte skip: -1`,
+// MetaImage `HeaderSize = -1`): the file must hold all of it after the header's `base` bytes.
+uint64_t offsetOfTrailingData(const RawVolumeInfo& info, uint64_t base)
+{
+    const uint64_t size = fileSize(info.dataFile);
+    if (size < base + info.dataBytes())
+        throw RawInputError(info.dataFile, "truncated: " + dimsString(info.dims) + " " + scalarName(info.type) + " needs " +
+                                           std::to_string(info.dataBytes()) + " bytes of data, the file has " +
+                                           std::to_string(size - std::min(size, base)));
+    return size - info.dataBytes();
+}
+
 bool isTrue(const std::string& v)
 {
     const std::string l = lower(trim(v));
@@ -336,11 +348,7 @@ RawVolumeInfo readNrrd(const std::string& path)
     base = skipLines(info.dataFile, base, lineSkip);
     if (info.encoding == Encoding::Raw) {
         if (byteSkip == -1) {
-            const uint64_t size = fileSize(info.dataFile);
-            if (size < base + info.dataBytes())
-                throw RawInputError(info.dataFile, "truncated: " + dimsString(info.dims) + " " + scalarName(info.type) + " needs " +
-                                                   std::to_string(info.dataBytes()) + " bytes of data, the file has " + std::to_string(size - std::min(size, base)));
-            info.fileOffset = size - info.dataBytes();
+            info.fileOffset = offsetOfTrailingData(info, base);
         } else {
             info.fileOffset = base + static_cast<uint64_t>(byteSkip);
         }
@@ -483,11 +491,7 @@ RawVolumeInfo readMetaImage(const std::string& path)
     }
     if (headerSize == -1) {
         if (info.encoding != Encoding::Raw) throw RawInputError(path, "HeaderSize = -1 needs uncompressed data");
-        const uint64_t size = fileSize(info.dataFile);
-        if (size < base + info.dataBytes())
-            throw RawInputError(info.dataFile, "truncated: " + dimsString(info.dims) + " " + scalarName(info.type) + " needs " +
-                                               std::to_string(info.dataBytes()) + " bytes of data, the file has " + std::to_string(size - std::min(size, base)));
-        info.fileOffset = size - info.dataBytes();
+        info.fileOffset = offsetOfTrailingData(info, base);
     } else {
         info.fileOffset = base + static_cast<uint64_t>(headerSize);
     }

@@ -691,6 +691,16 @@ TEST(BadInput, TruncatedFiles)
     writeFile(dir / "d.nhdr", nrrdHeader(ScalarType::F32, ByteOrder::Little, "raw", g, "d.raw"));
     writeFile(dir / "d.raw", data.substr(0, 10));
     expectFailure(dir, (dir / "d.nhdr").string(), {}, 1, {"truncated"}, (dir / "d.raw").string());
+    // data said to fill the data file's end (NRRD byte skip -1, MetaImage HeaderSize = -1), but shorter
+    writeFile(dir / "tail.nhdr", "NRRD0004\ntype: float\ndimension: 3\nsizes: 20 17 13\nbyte skip: -1\nencoding: raw\n"
+                                 "data file: tail.raw\n");
+    writeFile(dir / "tail.raw", data.substr(0, 1000));
+    expectFailure(dir, (dir / "tail.nhdr").string(), {}, 1, {"truncated", std::to_string(data.size()), "1000"},
+                  (dir / "tail.raw").string());
+    writeFile(dir / "tail.mhd", "ObjectType = Image\nNDims = 3\nDimSize = 20 17 13\nElementType = MET_FLOAT\n"
+                                "HeaderSize = -1\nElementDataFile = tail.raw\n");
+    expectFailure(dir, (dir / "tail.mhd").string(), {}, 1, {"truncated", std::to_string(data.size()), "1000"},
+                  (dir / "tail.raw").string());
     writeFile(dir / "m.mhd", metaHeader(ScalarType::F32, ByteOrder::Little, false, g, "missing.raw"));
     expectFailure(dir, (dir / "m.mhd").string(), {}, 1, {"cannot open"}, (dir / "missing.raw").string());
     expectFailure(dir, (dir / "nothere.nrrd").string(), {}, 1, {"cannot open"}, (dir / "nothere.nrrd").string());
