@@ -513,6 +513,13 @@ int main(int argc, char** argv)
                    "Changes the output slightly (more slabs, more seams); threads and ranks never do")
         ->default_val(opt.blocksPerSlab)
         ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
+    app.add_option("--retire-above", opt.retireAboveFaces,
+                   "Faces of a node of the merge tree from which its pass goes to the rate without deferral room;\n"
+                   "where two such nodes join, the faces far from every seam are written out and leave the\n"
+                   "decimator, so memory holds bands around the seams instead of the whole decimated surface.\n"
+                   "Smaller: less memory, a little less quality on large runs. 0: never (no effect with --lods)")
+        ->default_val(opt.retireAboveFaces)
+        ->check(CLI::Range(uint64_t(0), uint64_t(1) << 40));
     app.add_option("--count-sample", opt.countSampleRuns,
                    "For --faces on a large volume: count at least this many runs of 64 blocks, one of each run of\n"
                    "consecutive ones, instead of every block, once the volume has twice as many; R is then raised\n"

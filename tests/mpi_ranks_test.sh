@@ -57,6 +57,17 @@ for EXTRA in "--max-error 0.3" "--attributes noise --attribute-weight 2 --ratio 
   echo "$EXTRA: 2 ranks, same bytes as one process"
 done
 
+# Retired interiors travel with the pieces: forced low, every join of two nodes above 2000 faces
+# writes its interior out, on whichever rank it runs.
+"$B/vdb_isosimp" "$W/v.vdb" --retire-above 2000 --ratio 0.05 --batch 1000 --slab-blocks 64 -q -o "$W/t_one.ply" --report "$W/t_one.json"
+retired=$(sed -n 's/.*"faces_retired": *\([0-9]*\).*/\1/p' "$W/t_one.json")
+[ "$retired" -gt 0 ] || fail "--retire-above 2000: no face retired"
+for N in 2 4; do
+  mpirun -np $N "$B/vdb_isosimp" "$W/v.vdb" --retire-above 2000 --ratio 0.05 --batch 1000 --slab-blocks 64 --threads 1 -q -o "$W/t_$N.ply"
+  cmp "$W/t_one.ply" "$W/t_$N.ply" || fail "--retire-above 2000: $N ranks wrote other bytes"
+done
+echo "--retire-above 2000: $retired faces retired; 2 and 4 ranks, same bytes as one process"
+
 # A face target on a large volume counts a sample of the blocks (a gyroid of 77 slabs of 64 blocks:
 # every fourth run of 64), each rank its own sampled runs; a sample too coarse to say anything (the
 # noise volume, every fifth run) is followed by a count of every block, agreed among the ranks again.

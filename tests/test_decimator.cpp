@@ -383,6 +383,77 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
     EXPECT_EQ(home.points, travelled.points);
 }
 
+// A surface as a list of triangles of float positions, each started at its smallest corner (winding
+// kept) and the list sorted: two meshes with the same faces compare equal in any order of numbering.
+std::vector<std::array<std::array<float, 3>, 3>> faceSet(const Mesh& m)
+{
+    std::vector<std::array<std::array<float, 3>, 3>> faces;
+    for (const auto& t : m.triangles) {
+        std::array<std::array<float, 3>, 3> f{m.points[t[0]], m.points[t[1]], m.points[t[2]]};
+        std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
+        faces.push_back(f);
+    }
+    std::sort(faces.begin(), faces.end());
+    return faces;
+}
+
+TEST(Decimator, RetiringTheInteriorChangesNoFaceAndTravelsWithThePiece)
+{
+    // Two halves joined: the faces far from the seam just closed leave for the retired mesh, and the
+    // surface is the same face for face; a piece of the retired decimator, through bytes or not,
+    // absorbs into the same mesh; the passes after it never touch a retired face.
+    const std::array<BlockMesh, 2> halves = ellipsoidHalves();
+    Decimator d, upper;
+    d.addBlock(halves[0]);
+    upper.addBlock(halves[1]);
+    d.decimateTo(2000);
+    upper.decimateTo(2000);
+    d.absorb(upper.takePiece());
+    d.finalizeRemaining();
+    const Mesh before = d.mesh();
+    const size_t faces = d.faceCount();
+    const size_t retired = d.retireInterior(2, 0.0);
+    std::printf("%zu of %zu faces retired, %zu vertices left\n", retired, faces, d.vertexCount());
+    EXPECT_GT(retired, faces / 4);
+    EXPECT_LT(retired, faces);  // the seam's band stays
+    EXPECT_EQ(d.retiredFaces(), retired);
+    EXPECT_EQ(d.faceCount(), faces);
+    const Mesh after = d.mesh();
+    EXPECT_EQ(faceSet(after), faceSet(before));
+    EXPECT_EQ(after.points.size(), before.points.size());
+    const auto retiredSet = [&](const Mesh& m) {
+        Mesh r;
+        r.points = m.points;
+        r.triangles.assign(m.triangles.begin(), m.triangles.begin() + std::ptrdiff_t(retired));
+        return faceSet(r);
+    };
+    const auto kept = retiredSet(after);
+
+    auto goOn = [&](bool throughBytes) {
+        Decimator copy;
+        SlabPiece piece{Decimator(d).takePiece(), 1000, {}, true};
+        if (throughBytes) {
+            std::vector<char> bytes;
+            writePieceBytes(std::move(piece), bytes);
+            piece = readPieceBytes(bytes.data(), bytes.size());
+            EXPECT_TRUE(piece.roomSpent);
+        }
+        copy.absorb(std::move(piece.mesh));
+        EXPECT_EQ(copy.retiredFaces(), retired);
+        EXPECT_EQ(copy.faceCount(), faces);
+        copy.decimateTo(retired + 100);
+        copy.removeDegenerateFaces();
+        return copy.mesh();
+    };
+    const Mesh home = goOn(false), travelled = goOn(true);
+    EXPECT_EQ(home.triangles, travelled.triangles);
+    EXPECT_EQ(home.points, travelled.points);
+    EXPECT_LT(home.triangles.size(), faces);
+    EXPECT_GE(home.triangles.size(), retired);
+    EXPECT_EQ(retiredSet(home), kept);  // the retired faces come first, as they were
+    testing::expectClosedOutward(home, false, "decimated after retiring");
+}
+
 TEST(Decimator, APieceKeepsWhyItsPairsWereRefused)
 {
     // Pairs the bound refused in a slab stay the bound's after a merge, in this process or through the

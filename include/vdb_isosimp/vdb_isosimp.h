@@ -67,6 +67,14 @@ struct Options {
     // Changes the output (more slabs: more seams, each decimated when its two sides join); the output
     // never depends on threads or ranks. Default 2048.
     uint64_t blocksPerSlab = 2048;
+    // A node of the merge tree holding at least this many faces is decimated to the rate without the
+    // deferral room, and a join of two such nodes retires the interior of the joined surface: faces far
+    // from every seam are written to the output part of the mesh (12 bytes a face and 12 a point) and
+    // leave the decimator (~120 bytes a face), so the run holds bands around the seams instead of the
+    // whole decimated surface. Changes the output where it applies; 0: never (each node keeps its room
+    // and its interior up to the final pass). Not with a LOD chain (lods), whose coarser levels
+    // continue from the finer ones. Default 100000.
+    uint64_t retireAboveFaces = 100000;
     // If > 0: after the final decimation, closed components whose area is below this many world
     // units squared are removed (floaters); Report::componentsPruned counts them. Default 0 (none).
     double minComponentArea = 0.0;
@@ -79,7 +87,7 @@ struct Options {
     // 0 (default): no bound.
     double maxError = 0.0;
     // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
-    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0]), each slab
+    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0] with retireAboveFaces 0), each slab
     // continues from a copy of one level to the next rate, every level is joined and finished like a
     // single-rate run and handed to onLevel as soon as it is made (so a caller can write it and let it
     // go), finest first; the Result
@@ -143,6 +151,7 @@ struct Report {
     uint64_t maxUncontractibleFaces = 0;
     uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
     uint64_t componentsPruned = 0;    // closed components below Options::minComponentArea removed
+    uint64_t facesRetired = 0;        // output faces written out before the final pass (Options::retireAboveFaces)
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     // The decimation's work, every level of a chain included: queue entries popped, of which entries
     // of a dead vertex, stale entries queued again and collapses attempted; and the collapses they made

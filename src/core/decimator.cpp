@@ -4,6 +4,7 @@
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
+#include <malloc.h>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -89,6 +90,7 @@ uint32_t Decimator::newVertex(const std::array<double, 3>& p)
     ++v.ring;
     v.alive = true;
     v.final = false;
+    v.pinned = false;
     v.head = kNone;
     ++mVertexCount;
     return id;
@@ -134,7 +136,9 @@ void Decimator::killFace(uint32_t id)
 void Decimator::killVertex(uint32_t v)
 {
     VertexMeta& x = mMeta[v];
+    if (x.pinned) mPinnedAt.erase(v);
     x.alive = false;
+    x.pinned = false;
     x.head = kNone;
     ++x.version;
     mFreeVerts.push_back(v);
@@ -229,6 +233,7 @@ size_t Decimator::placements(uint32_t a, uint32_t b, Placement out[kPlacements],
 
 void Decimator::push(uint32_t a, uint32_t b)
 {
+    if (mMeta[a].pinned || mMeta[b].pinned) return;  // its point is in the retired mesh already
     // The cheapest placement, valid or not: a lower bound on what the collapse will cost (collapse()
     // checks validity and sends the pair back when a valid placement costs more).
     Placement p[kPlacements];
@@ -256,7 +261,8 @@ bool Decimator::edgeExists(uint32_t a, uint32_t b) const
 
 bool Decimator::liveFinalPair(uint32_t a, uint32_t b) const
 {
-    return mMeta[a].alive && mMeta[b].alive && mMeta[a].final && mMeta[b].final;
+    const VertexMeta &x = mMeta[a], &y = mMeta[b];
+    return x.alive && y.alive && x.final && y.final && !x.pinned && !y.pinned;
 }
 
 bool Decimator::current(const Candidate& c) const
@@ -312,7 +318,7 @@ bool Decimator::collapseCheapestEdge(uint32_t f, bool aroundFace)
     std::pair<uint32_t, uint32_t> pick{kNone, kNone};
     for (const auto& [a, b] : edges) {
         double cost;
-        if (!mMeta[a].final || !mMeta[b].final || collapse(a, b, -1.0f, &cost) != Outcome::Costlier) continue;
+        if (!liveFinalPair(a, b) || collapse(a, b, -1.0f, &cost) != Outcome::Costlier) continue;
         if (cost < best) {
             best = cost;
             pick = {a, b};
@@ -425,6 +431,8 @@ public:
     explicit PieceSource(MeshPiece& piece) : mPiece(piece) {}
     size_t vertexCount() const { return mPiece.vertices.size(); }
     std::vector<std::pair<EdgeKey, uint32_t>> takeOpen() { return std::move(mPiece.open); }
+    RetiredMesh takeRetired() { return std::move(mPiece.retired); }
+    std::vector<std::pair<uint32_t, uint32_t>> takePinned() { return std::move(mPiece.pinned); }
     const V3& position(uint32_t i) const { return mPiece.vertices[i].p; }
     const Quadric& quadric(uint32_t i) const { return mPiece.vertices[i].q; }
     bool final(uint32_t i) const { return mPiece.vertices[i].final; }
@@ -477,7 +485,7 @@ public:
             if (d.mMeta[v].alive) {
                 mDense[v] = uint32_t(mIds.size());
                 mIds.push_back(v);
-                if (d.mMeta[v].final) mQueueable[v] = {mDense[v], d.mMeta[v].version};
+                if (d.mMeta[v].final && !d.mMeta[v].pinned) mQueueable[v] = {mDense[v], d.mMeta[v].version};
             }
     }
     ~DecimatorSource() { mDec = Decimator{}; }
@@ -489,6 +497,17 @@ public:
         std::vector<std::pair<EdgeKey, uint32_t>> open = std::move(mDec.mSealedOpen);
         for (auto& o : open) o.second = mDense[o.second];
         return open;
+    }
+    RetiredMesh takeRetired() { return std::move(mDec.mRetired); }
+    // In number order.
+    std::vector<std::pair<uint32_t, uint32_t>> takePinned()
+    {
+        std::vector<std::pair<uint32_t, uint32_t>> pinned;
+        pinned.reserve(mDec.mPinnedAt.size());
+        for (const auto& [v, at] : mDec.mPinnedAt) pinned.emplace_back(mDense[v], at);
+        std::sort(pinned.begin(), pinned.end());
+        mDec.mPinnedAt = {};
+        return pinned;
     }
     const V3& position(uint32_t i) const { return mDec.mGeom[mIds[i]].p; }
     const Quadric& quadric(uint32_t i) const { return mDec.mGeom[mIds[i]].q; }
@@ -618,6 +637,8 @@ MeshPiece Decimator::takePiece()
     piece.refused.reserve(from.refusedCount());  // exactly: a doubling vector held up to twice the pairs
     from.drainRefused([&](uint32_t a, uint32_t b, Refusal why) { piece.refused.push_back({a, b, why}); });
     piece.open = from.takeOpen();
+    piece.retired = from.takeRetired();
+    piece.pinned = from.takePinned();
     for (uint32_t i = 0; i < from.vertexCount(); ++i) {
         piece.vertices.emplace_back() = {from.position(i), from.quadric(i), from.final(i)};
         if (const float* d = from.drift(i)) piece.drift.emplace_back() = *d;
@@ -716,6 +737,24 @@ void Decimator::absorbFrom(Source& from)
         }
         from.release(v);
     }
+    // The other side's retired faces follow this side's; its pinned vertices point there.
+    RetiredMesh retired = from.takeRetired();
+    const uint32_t offset = uint32_t(mRetired.points.size());
+    for (size_t i = 0; i < retired.points.size(); ++i) {
+        mRetired.points.emplace_back() = retired.points[i];
+        retired.points.releaseThrough(i);
+    }
+    for (size_t i = 0; i < retired.triangles.size(); ++i) {
+        const auto& t = retired.triangles[i];
+        mRetired.triangles.emplace_back() = {t[0] + offset, t[1] + offset, t[2] + offset};
+        retired.triangles.releaseThrough(i);
+    }
+    mFaceCount += retired.triangles.size();
+    retired = {};
+    for (const auto& [v, at] : from.takePinned()) {
+        mMeta[remap[v]].pinned = true;
+        mPinnedAt.emplace(remap[v], offset + at);
+    }
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
     // Each piece vertex's number here and its version, side by side for the queue's random reads.
@@ -781,7 +820,8 @@ size_t Decimator::finalizeOpen(const std::function<bool(EdgeKey)>& which)
     }
     std::sort(open.begin(), open.end());  // map order is not deterministic across runs
     for (uint32_t v : open) finalize(v);
-    return open.size();
+    mSeam = std::move(open);
+    return mSeam.size();
 }
 
 bool Decimator::facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const
@@ -1171,6 +1211,7 @@ bool Decimator::dropFlatComponent(uint32_t seed)
     for (size_t i = 0; i < faces.size(); ++i) {
         if (!degenerate(faces[i])) return false;
         for (uint32_t v : mFaces[faces[i]].v) {
+            if (mMeta[v].pinned) return false;  // part of a retired component
             if (std::find(verts.begin(), verts.end(), v) == verts.end()) verts.push_back(v);
             for (uint32_t c = mMeta[v].head; c != kNone; c = mFaces[c / 3].next[c % 3])
                 if (const uint32_t g = c / 3; std::find(faces.begin(), faces.end(), g) == faces.end()) {
@@ -1194,6 +1235,7 @@ bool Decimator::openPinch(uint32_t f)
     const double step = 1e-5 * std::sqrt(mZeroArea / 1e-12);
     for (int k = 0; k < 3; ++k) {
         const uint32_t x = mFaces[f].v[k];
+        if (mMeta[x].pinned) continue;
         V3 normal{0, 0, 0};
         for (uint32_t c = mMeta[x].head; c != kNone; c = mFaces[c / 3].next[c % 3]) {
             const auto& fv = mFaces[c / 3].v;
@@ -1247,6 +1289,11 @@ size_t Decimator::removeDegenerateFaces()
                 lo[k] = std::min(lo[k], mGeom[v].p[k]);
                 hi[k] = std::max(hi[k], mGeom[v].p[k]);
             }
+    for (size_t i = 0; i < mRetired.points.size(); ++i)  // the surface's box: the retired part is in it
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], double(mRetired.points[i][k]));
+            hi[k] = std::max(hi[k], double(mRetired.points[i][k]));
+        }
     const V3 diagonal = sub(hi, lo);
     mZeroArea = mVertexCount ? 1e-12 * dot(diagonal, diagonal) : 0.0;
     // Faces are found by a parallel scan and visited in face order, as a serial scan would. Collapses
@@ -1321,6 +1368,134 @@ size_t Decimator::removeDegenerateFaces()
     return remaining;
 }
 
+bool Decimator::mayBeZeroArea(uint32_t f) const
+{
+    const auto& v = mFaces[f].v;
+    const V3 &p0 = mGeom[v[0]].p, &p1 = mGeom[v[1]].p, &p2 = mGeom[v[2]].p;
+    const V3 n = cross(sub(p1, p0), sub(p2, p0));
+    const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
+    if (!(std::sqrt(dot(n, n)) > kDegenerateShape * edges)) return true;
+    auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
+    const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
+    const V3 m = cross(sub(q1, q0), sub(q2, q0));
+    // mMinPlaneWeight is kMinPlaneWeight voxel faces. The final pass's zero area is 1e-12 of the
+    // squared diagonal: below this bound for any surface under ~30,000 voxels across.
+    const double least = 2.0 * kRetireMinArea * mMinPlaneWeight / kMinPlaneWeight;
+    return !(std::sqrt(dot(n, n)) > least) || !(std::sqrt(dot(m, m)) > least);
+}
+
+size_t Decimator::retireInterior(size_t rings, double minComponentArea)
+{
+    const uint32_t slots = uint32_t(mMeta.size());
+    // What stays: rings around the open vertices, the seam just closed and every face that is or may
+    // become zero-area.
+    std::vector<uint8_t> near(slots, 0);
+    std::vector<uint32_t> frontier, next;
+    const auto keep = [&](uint32_t v) {
+        if (!near[v]) {
+            near[v] = 1;
+            frontier.push_back(v);
+        }
+    };
+    for (uint32_t v = 0; v < slots; ++v)
+        if (mMeta[v].alive && !mMeta[v].final) keep(v);
+    for (uint32_t v : mSeam)
+        if (mMeta[v].alive) keep(v);
+    for (uint32_t f = 0; f < mFaces.size(); ++f)
+        if (mFaces[f].alive() && mayBeZeroArea(f))
+            for (uint32_t v : mFaces[f].v) keep(v);
+    for (size_t i = 0; i < rings && !frontier.empty(); ++i) {
+        next.clear();
+        for (uint32_t v : frontier) {
+            neighbours(v, mScratchB);
+            for (uint32_t n : mScratchB)
+                if (!near[n]) {
+                    near[n] = 1;
+                    next.push_back(n);
+                }
+        }
+        frontier.swap(next);
+    }
+    frontier = {};
+    next = {};
+    // Components by union-find: small ones stay whole (dropSmallComponents, pruneComponents); one with
+    // a pinned vertex has retired faces already.
+    std::vector<uint32_t> parent(slots);
+    for (uint32_t v = 0; v < slots; ++v) parent[v] = v;
+    const auto find = [&](uint32_t v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (const Face& f : mFaces)
+        if (f.alive()) {
+            parent[find(f.v[1])] = find(f.v[0]);
+            parent[find(f.v[2])] = find(f.v[0]);
+        }
+    struct Size {
+        uint64_t faces = 0;
+        double area = 0;
+    };
+    std::vector<Size> size(slots);
+    for (const Face& f : mFaces)
+        if (f.alive()) {
+            Size& c = size[find(f.v[0])];
+            const V3 n = cross(sub(mGeom[f.v[1]].p, mGeom[f.v[0]].p), sub(mGeom[f.v[2]].p, mGeom[f.v[0]].p));
+            ++c.faces;
+            c.area += 0.5 * std::sqrt(dot(n, n));
+        }
+    for (const auto& pinned : mPinnedAt) size[find(pinned.first)].faces = UINT64_MAX;
+    const auto retires = [&](const Face& f) {
+        if (near[f.v[0]] || near[f.v[1]] || near[f.v[2]]) return false;
+        const Size& c = size[find(f.v[0])];
+        return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && c.area >= minComponentArea);
+    };
+    // Faces in slot order, their corners numbered as they first appear (a pinned one has its number).
+    std::vector<uint32_t> at(slots, kNone);
+    for (const auto& [v, i] : mPinnedAt) at[v] = i;
+    std::vector<uint32_t> corners;
+    size_t retired = 0;
+    for (uint32_t f = 0; f < mFaces.size(); ++f) {
+        if (!mFaces[f].alive() || !retires(mFaces[f])) continue;
+        std::array<uint32_t, 3> t;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = mFaces[f].v[k];
+            if (at[v] == kNone) {
+                at[v] = uint32_t(mRetired.points.size());
+                const V3& p = mGeom[v].p;
+                mRetired.points.emplace_back() = {float(p[0]), float(p[1]), float(p[2])};
+                corners.push_back(v);
+            }
+            t[k] = at[v];
+        }
+        mRetired.triangles.emplace_back() = t;
+        killFace(f);
+        ++mFaceCount;  // still a face of the surface
+        ++retired;
+    }
+    if (retired == 0) return 0;
+    // A corner without faces here leaves; one with faces stays, pinned. Either way its queue entries
+    // and refusals go (a pinned vertex is never queued again).
+    for (const auto& pinned : mPinnedAt) corners.push_back(pinned.first);
+    for (uint32_t v : corners) {
+        if (!mMeta[v].alive) continue;
+        if (mMeta[v].head == kNone) {
+            killVertex(v);
+        } else if (!mMeta[v].pinned) {
+            mMeta[v].pinned = true;
+            ++mMeta[v].version;
+            mPinnedAt.emplace(v, at[v]);
+        }
+    }
+    retryRefused([](const Refused&) { return false; });  // drops the pairs of vertices gone
+    size_t kept = 0;
+    for (const Refused& r : mRefused)
+        if (!mMeta[r.a].pinned && !mMeta[r.b].pinned) mRefused[kept++] = r;
+    mRefused.truncate(kept);
+    // The slots of what left go with a copy of the rest into fresh arrays.
+    absorb(park());
+    return retired;
+}
+
 std::vector<Decimator::Component> Decimator::componentsByArea() const
 {
     // Components by union-find over the vertices of live faces.
@@ -1335,11 +1510,15 @@ std::vector<Decimator::Component> Decimator::componentsByArea() const
             parent[find(f.v[1])] = find(f.v[0]);
             parent[find(f.v[2])] = find(f.v[0]);
         }
-    std::vector<Component> comps;
+    // A component with a pinned vertex goes on in the retired mesh: it is no candidate.
+    constexpr int64_t kRetiredPart = -2;
     std::vector<int64_t> index(mMeta.size(), -1);
+    for (const auto& pinned : mPinnedAt) index[find(pinned.first)] = kRetiredPart;
+    std::vector<Component> comps;
     for (uint32_t f = 0; f < mFaces.size(); ++f) {
         if (!mFaces[f].alive()) continue;
         const uint32_t root = find(mFaces[f].v[0]);
+        if (index[root] == kRetiredPart) continue;
         if (index[root] < 0) {
             index[root] = int64_t(comps.size());
             comps.emplace_back();
@@ -1456,7 +1635,7 @@ void Decimator::requeueAll()
 
 // verticesRead(v) / facesRead(i): vertex v / face i, and every one before it, has been read for the last time.
 template <typename VerticesRead, typename FacesRead>
-Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) const
+void Decimator::collectMesh(Mesh& m, VerticesRead verticesRead, FacesRead facesRead) const
 {
     // Live vertices and faces in slot order (deterministic for a deterministic input sequence), on
     // all threads: every span of slots counts its live records, then writes them from its offset.
@@ -1477,15 +1656,16 @@ Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) cons
         std::partial_sum(first.begin(), first.end(), first.begin());
         return first;
     };
-    Mesh m;
     const size_t slots = mMeta.size();
-    const std::vector<size_t> firstVertex = offsets(slots, [&](size_t v) { return mMeta[v].alive != 0; });
-    m.points.resize(firstVertex.back());
+    const std::vector<size_t> firstVertex = offsets(slots, [&](size_t v) { return mMeta[v].alive && !mMeta[v].pinned; });
+    const size_t pointsBefore = m.points.size(), trianglesBefore = m.triangles.size();
+    m.points.resize(pointsBefore + firstVertex.back());
     std::vector<uint32_t> remap(slots, UINT32_MAX);
+    for (const auto& [v, at] : mPinnedAt) remap[v] = at;
     tbb::parallel_for(size_t(0), spans(slots), [&](size_t s) {
-        size_t out = firstVertex[s];
+        size_t out = pointsBefore + firstVertex[s];
         for (size_t v = s * kSpan; v < std::min(slots, (s + 1) * kSpan); ++v) {
-            if (mMeta[v].alive) {
+            if (mMeta[v].alive && !mMeta[v].pinned) {
                 remap[v] = uint32_t(out);
                 const V3& p = mGeom[v].p;
                 m.points[out++] = {float(p[0]), float(p[1]), float(p[2])};
@@ -1495,21 +1675,24 @@ Mesh Decimator::collectMesh(VerticesRead verticesRead, FacesRead facesRead) cons
     });
     const size_t faces = mFaces.size();
     const std::vector<size_t> firstFace = offsets(faces, [&](size_t i) { return mFaces[i].alive(); });
-    m.triangles.resize(firstFace.back());
+    m.triangles.resize(trianglesBefore + firstFace.back());
     tbb::parallel_for(size_t(0), spans(faces), [&](size_t s) {
-        size_t out = firstFace[s];
+        size_t out = trianglesBefore + firstFace[s];
         for (size_t i = s * kSpan; i < std::min(faces, (s + 1) * kSpan); ++i) {
             const Face& f = mFaces[i];
             if (f.alive()) m.triangles[out++] = {remap[f.v[0]], remap[f.v[1]], remap[f.v[2]]};
             facesRead(i);
         }
     });
-    return m;
 }
 
 Mesh Decimator::mesh() const
 {
-    return collectMesh([](size_t) {}, [](size_t) {});
+    Mesh m;
+    for (size_t i = 0; i < mRetired.points.size(); ++i) m.points.push_back(mRetired.points[i]);
+    for (size_t i = 0; i < mRetired.triangles.size(); ++i) m.triangles.push_back(mRetired.triangles[i]);
+    collectMesh(m, [](size_t) {}, [](size_t) {});
+    return m;
 }
 
 Mesh Decimator::takeMesh()
@@ -1523,7 +1706,28 @@ Mesh Decimator::takeMesh()
     mDrift = {};
     mAttrQ = {};
     const Stopwatch collection;
-    Mesh m = collectMesh(
+    // Exactly the output's size (a vector grown past its capacity holds both copies while it moves):
+    // the retired part first, freed as it is copied.
+    // The chunks go back to the heap, not to the system, and the output's arrays are fresh pages: the
+    // heap's free pages are handed back every few megabytes copied.
+    Mesh m;
+    m.points.reserve(mRetired.points.size() + mVertexCount - mPinnedAt.size());
+    m.triangles.reserve(mFaceCount);
+    constexpr size_t kTrimEvery = size_t(1) << 20;  // records of 12 bytes
+    for (size_t i = 0; i < mRetired.points.size(); ++i) {
+        m.points.push_back(mRetired.points[i]);
+        mRetired.points.releaseThrough(i);
+        if ((i + 1) % kTrimEvery == 0) malloc_trim(0);
+    }
+    for (size_t i = 0; i < mRetired.triangles.size(); ++i) {
+        m.triangles.push_back(mRetired.triangles[i]);
+        mRetired.triangles.releaseThrough(i);
+        if ((i + 1) % kTrimEvery == 0) malloc_trim(0);
+    }
+    mRetired = {};
+    malloc_trim(0);
+    collectMesh(
+        m,
         [this](size_t v) {
             mGeom.releaseThrough(v);
             mMeta.releaseThrough(v);

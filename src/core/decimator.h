@@ -32,6 +32,13 @@ namespace vdb_isosimp {
 // placement would fold or degenerate a face, or it would move the surface by more than the error bound.
 enum class Refusal : uint8_t { Topology = 0, Folds = 1, Bound = 2 };
 
+// The retired part of a surface (Decimator::retireInterior): points in float, as the output has them,
+// and faces, in chunks, so a merge or the output's collection frees them as it reads them.
+struct RetiredMesh {
+    ChunkedVector<std::array<float, 3>> points;
+    ChunkedVector<std::array<uint32_t, 3>> triangles;
+};
+
 // A decimator's mesh as a merge hands it on (Decimator::takePiece): alive vertices renumbered densely
 // in id order, faces in id order, the open vertices by edge key, and the queue and refused pairs
 // that name live vertices. absorb() reads nothing else of the other side, so absorbing a piece made
@@ -62,6 +69,10 @@ struct MeshPiece {
     // attribute quadric (written around the vertex) with an attribute weight.
     ChunkedVector<float> drift;
     ChunkedVector<AttributeQuadric> attributes;
+    // The retired part of the surface (Decimator::retireInterior) and, per pinned vertex (its number
+    // here, in order), its point there.
+    RetiredMesh retired;
+    std::vector<std::pair<uint32_t, uint32_t>> pinned;
 };
 
 // What decimateTo() did, counted per queue entry popped: every pop is an entry of a dead vertex, a
@@ -133,6 +144,19 @@ public:
     // squared bounding-box diagonal: coincident vertices where voxels sit at the iso-value), and drops
     // tiny components that are flat all over (no area, no volume). Returns how many remain.
     size_t removeDegenerateFaces();
+    // Retires the interior of a finished node of the merge tree: every face whose corners are all more
+    // than `rings` rings from an open vertex and from the seam the last finalizeOpen closed leaves the
+    // decimator for the retired mesh, 12 bytes a face and 12 a point (float, as the output has them),
+    // against ~120 bytes a face here. Nothing collapses there again, so a retired face is one of the
+    // output's: its corners that still have faces here stay, pinned (never moved, never queued). Not
+    // retired: faces near one that is or may become zero-area (so removeDegenerateFaces can still fix
+    // it), and components of fewer than kRetireComponentFaces faces or less area than `minComponentArea`
+    // (so the whole-component clean-ups can still remove them). The decimator is compacted after.
+    // Returns how many faces were retired.
+    size_t retireInterior(size_t rings, double minComponentArea);
+    static constexpr size_t kRetireComponentFaces = 256;
+    size_t retiredFaces() const { return mRetired.triangles.size(); }
+
     // Seconds this decimator spent in the parts of a final pass that run on all threads:
     // removeDegenerateFaces' scan over every face and takeMesh's collection of the output mesh (the
     // report keeps them apart for the scaling model).
@@ -199,6 +223,7 @@ public:
     // throwing Cancelled (errors.h), so Ctrl-C is honoured inside long passes too.
     void setInterrupter(std::function<bool()> stop) { mStop = std::move(stop); }
 
+    // Faces of the surface, retired ones included; vertices still here, pinned ones included.
     size_t faceCount() const { return mFaceCount; }
     size_t vertexCount() const { return mVertexCount; }
     size_t uncontractibleFaces() const { return mUncontractibleFaces; }
@@ -213,7 +238,7 @@ public:
     // Everything decimateTo() did so far (counted since this decimator was made or copied from).
     const QueueWork& work() const { return mWork; }
 
-    // The surviving mesh, compacted, vertices in creation order.
+    // The surviving mesh, compacted: the retired part first, then the vertices here in slot order.
     Mesh mesh() const;
     // The same mesh, made while the decimator lets go of its arrays: the queue and the rest first, then
     // each chunk of vertices and faces once copied, so the run's end holds the decimator or the mesh,
@@ -239,14 +264,15 @@ private:
         Quadric q;
     };
     struct VertexMeta {
-        VertexMeta() : ring(0), alive(0), final(0) {}
+        VertexMeta() : ring(0), pinned(0), alive(0), final(0) {}
         uint32_t version = 0;  // bumped on every change, so stale queue entries can be recognised
         uint32_t head = kNone; // first corner of this vertex
         uint32_t mark = 0;     // scratch stamp for ring walks (dedupe without sorting)
         // Bumped whenever a face around the vertex changes (a collapse at it or at a neighbour): a
         // refused collapse can only become legal once this changes at one of its ends. Refusals keep
-        // 31 bits of the sum of two; a vertex sees far fewer than 2^30 changes.
-        uint32_t ring : 30;
+        // 30 bits of the sum of two; a vertex sees far fewer than 2^29 changes.
+        uint32_t ring : 29;
+        uint32_t pinned : 1;  // a corner of retired faces (retireInterior): its point is written
         uint32_t alive : 1;
         uint32_t final : 1;
     };
@@ -363,8 +389,13 @@ private:
     // first) keeps every face valid, else Collapsed: nothing here forbids it, and `*place` is the
     // cheapest valid placement.
     Outcome placeCollapse(uint32_t a, uint32_t b, EdgeLink& e, Placement places[kPlacements], size_t* place);
+    // Appends this decimator's live mesh to `out`, which holds the retired part.
     template <typename VerticesRead, typename FacesRead>
-    Mesh collectMesh(VerticesRead verticesRead, FacesRead facesRead) const;
+    void collectMesh(Mesh& out, VerticesRead verticesRead, FacesRead facesRead) const;
+    // A face that is or may become zero-area after collapses around it: degenerate in shape, or of less
+    // area than kRetireMinArea voxel faces in double or in float.
+    bool mayBeZeroArea(uint32_t f) const;
+    static constexpr double kRetireMinArea = 1e-3;
 
     ChunkedVector<VertexGeom> mGeom;
     ChunkedVector<VertexGeom>::Spares mGeomSpares;  // during absorb(Decimator&&): the other side's read chunks
@@ -437,6 +468,9 @@ private:
     uint64_t mPolls = 0;
     uint32_t mStamp = 0;
     std::vector<uint32_t> mScratchA, mScratchB;
+    std::vector<uint32_t> mSeam;  // the vertices the last finalizeOpen made final
+    RetiredMesh mRetired;         // retireInterior
+    std::unordered_map<uint32_t, uint32_t> mPinnedAt;  // pinned vertex -> its point in mRetired
     using Tri = std::array<std::array<double, 3>, 3>;
     struct FanFace {
         Tri t;

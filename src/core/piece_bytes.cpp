@@ -8,7 +8,7 @@ namespace vdb_isosimp {
 
 namespace {
 
-constexpr uint64_t kMagic = 0x31656365695076ull;  // "vPiece1"
+constexpr uint64_t kMagic = 0x32656365695076ull;  // "vPiece2"
 
 class Writer {
 public:
@@ -57,9 +57,11 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
     Writer w(out);
     MeshPiece& m = piece.mesh;
     out.reserve(out.size() + 128 + 44 * piece.stats.trace.size() + 105 * m.vertices.size() + 12 * m.faces.size() +
-                12 * m.open.size() + 13 * m.queue.size() + 9 * m.refused.size());
+                12 * m.open.size() + 13 * m.queue.size() + 9 * m.refused.size() +
+                12 * (m.retired.points.size() + m.retired.triangles.size()) + 8 * m.pinned.size());
     w.put(kMagic);
     w.put(piece.facesGenerated);
+    w.put(uint8_t(piece.roomSpent));
     w.put(piece.stats.decimations);
     w.put(piece.stats.maxIntermediateFaces);
     w.put(piece.stats.maxUncontractibleFaces);
@@ -119,6 +121,21 @@ void writePieceBytes(SlabPiece&& piece, std::vector<char>& out)
         for (double x : a.gd) w.put(x);
         for (double x : {a.w, a.d, a.dd}) w.put(x);
     }
+    w.put(uint64_t(m.retired.points.size()));
+    for (size_t i = 0; i < m.retired.points.size(); ++i) {
+        for (float x : m.retired.points[i]) w.put(x);
+        m.retired.points.releaseThrough(i);
+    }
+    w.put(uint64_t(m.retired.triangles.size()));
+    for (size_t i = 0; i < m.retired.triangles.size(); ++i) {
+        for (uint32_t x : m.retired.triangles[i]) w.put(x);
+        m.retired.triangles.releaseThrough(i);
+    }
+    w.put(uint64_t(m.pinned.size()));
+    for (const auto& [v, at] : m.pinned) {
+        w.put(v);
+        w.put(at);
+    }
     piece = SlabPiece{};
 }
 
@@ -128,6 +145,7 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
     SlabPiece piece;
     if (r.get<uint64_t>() != kMagic) throw std::runtime_error("merge tree piece: not a piece");
     piece.facesGenerated = r.get<uint64_t>();
+    piece.roomSpent = r.get<uint8_t>() != 0;
     piece.stats.decimations = r.get<uint64_t>();
     piece.stats.maxIntermediateFaces = r.get<uint64_t>();
     piece.stats.maxUncontractibleFaces = r.get<uint64_t>();
@@ -196,6 +214,20 @@ SlabPiece readPieceBytes(const char* bytes, size_t size)
         a.w = r.get<double>();
         a.d = r.get<double>();
         a.dd = r.get<double>();
+    }
+    const uint64_t points = r.count(12);
+    for (uint64_t i = 0; i < points; ++i)
+        for (float& x : m.retired.points.emplace_back()) x = r.get<float>();
+    for (uint64_t i = 0, n = r.count(12); i < n; ++i)
+        for (uint32_t& x : m.retired.triangles.emplace_back()) {
+            x = r.get<uint32_t>();
+            if (x >= points) throw std::runtime_error("merge tree piece: a retired face names a missing point");
+        }
+    m.pinned.resize(r.count(8));
+    for (auto& [v, at] : m.pinned) {
+        v = r.get<uint32_t>();
+        at = r.get<uint32_t>();
+        if (v >= vertices || at >= m.retired.points.size()) throw std::runtime_error("merge tree piece: a pinned vertex is missing");
     }
     return piece;
 }

@@ -39,6 +39,7 @@ struct SlabPiece {
     MeshPiece mesh;
     uint64_t facesGenerated = 0;
     SlabStats stats;
+    bool roomSpent = false;  // its last pass went to the rate without room (Options::retireAboveFaces)
 };
 
 // Serial, in-order stage of one slab: integration and the decimation schedule of the paper's
@@ -47,10 +48,15 @@ struct SlabPiece {
 // wait in the queue, where a later pass (the final one at the latest) weighs them against the rest of
 // the surface. The intermediate mesh keeps the paper's bound, F_t + B. (A batch held to F_t pays for
 // the face budget with its own sharpest features even where another batch has cheaper collapses.)
+// Near the root the room is spent: a node of Options::retireAboveFaces faces or more is decimated to
+// F_t at its join, and once both sides of a join have been, no room is owed anywhere below it: the
+// interior of the joined surface cannot change again but for the collapses near its seams, and it is
+// retired (Decimator::retireInterior), so the top of the tree holds seam bands, not the surface.
 class Integrator {
 public:
     Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
-        : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab)
+        : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab),
+          mRetireAbove(o.lods.empty() ? o.retireAboveFaces : 0)
     {
         // With an error bound the bound keeps early batches from losing detail; the initial phase,
         // which decimates whenever the mesh exceeds B, would run at every block once the bound holds
@@ -275,7 +281,7 @@ private:
         mStats.maxErrorAccepted = std::max(mStats.maxErrorAccepted, mDec.maxErrorAccepted());
         mStats.work += mDec.work() - mWorkSeen;
         mWorkSeen = {};  // the decimator is emptied next, its count at zero
-        SlabPiece p{MeshPiece{}, mFacesGenerated + mAbsorbedFaces, std::move(mStats)};
+        SlabPiece p{MeshPiece{}, mFacesGenerated + mAbsorbedFaces, std::move(mStats), mRoomSpent};
         p.stats.add(mAbsorbed);
         return p;
     }
@@ -286,8 +292,15 @@ private:
         mDec.finalizeOpen(closes);
         mAbsorbedFaces += sibling.facesGenerated;
         mAbsorbed.add(sibling.stats);
-        decimate(batchTarget(double(mFacesGenerated + mAbsorbedFaces)));
+        if (mRoomSpent && sibling.roomSpent) mDec.retireInterior(kRetireRings, mOpt.minComponentArea);
+        mRoomSpent = mRetireAbove > 0 && mDec.faceCount() >= mRetireAbove;
+        const double faces = double(mFacesGenerated + mAbsorbedFaces);
+        decimate(mRoomSpent ? phaseTarget(faces, mRatio) : batchTarget(faces));
     }
+    // Rings kept live around a retirement's seams: the seam's pass and the next joins' collapses reach
+    // a few rings into a node (3 rings cost noise 448^3 +2.7 % RMS at R = 0.2, 6 rings +2.1 %, 12 rings
+    // +1.9 %; docs/perf.md).
+    static constexpr size_t kRetireRings = 6;
 
     void unpark()
     {
@@ -312,6 +325,8 @@ private:
     double mRatio;
     uint64_t mBatch, mDefer;
     uint32_t mSlab;
+    uint64_t mRetireAbove;   // 0: no room is spent early, nothing retires
+    bool mRoomSpent = false; // this node's last pass went to F_t without room
     Decimator mDec;
     std::unique_ptr<MeshPiece> mParked;  // park()
     bool mCompacted = false;             // compactQueue() ran, and no pass or absorb since

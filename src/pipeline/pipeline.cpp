@@ -796,6 +796,7 @@ Result PipelineRun::finalPass()
                                            : uint64_t(std::llround(mRatio * double(rep.facesFull)));
     std::vector<uint64_t> unfinalized(mRoot.size(), 0);
     const size_t seamVertices = whole.decimator().openVertices();
+    rep.facesRetired = whole.decimator().retiredFaces();
     const size_t traced = slabs.trace.size();
     const auto parallelSeconds = [&] {
         double s = 0.0;

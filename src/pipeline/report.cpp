@@ -43,6 +43,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             text("stopped_by", r.stoppedBy),
             integer("components_dropped", r.componentsDropped),
             integer("components_pruned", r.componentsPruned),
+            integer("faces_retired", r.facesRetired),
             integer("queue_pops", r.queuePops),
             integer("queue_dead", r.queueDead),
             integer("queue_stale", r.queueStale),
