@@ -73,8 +73,8 @@ struct Options {
     // leave the decimator (~120 bytes a face), so the run holds bands around the seams instead of the
     // whole decimated surface. Changes the output where it applies; 0: never (each node keeps its room
     // and its interior up to the final pass). Not with a LOD chain (lods), whose coarser levels
-    // continue from the finer ones. Default 100000.
-    uint64_t retireAboveFaces = 100000;
+    // continue from the finer ones. Default 50000.
+    uint64_t retireAboveFaces = 50000;
     // If > 0: after the final decimation, closed components whose area is below this many world
     // units squared are removed (floaters); Report::componentsPruned counts them. Default 0 (none).
     double minComponentArea = 0.0;
