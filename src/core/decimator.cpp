@@ -1491,8 +1491,8 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     for (const Refused& r : mRefused)
         if (!mMeta[r.a].pinned && !mMeta[r.b].pinned) mRefused[kept++] = r;
     mRefused.truncate(kept);
-    // The slots of what left go with a copy of the rest into fresh arrays.
-    absorb(park());
+    // The slots of what left are reused by the next join's absorb; the queue drops their entries now.
+    compactQueue();
     return retired;
 }
 

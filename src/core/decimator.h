@@ -151,10 +151,11 @@ public:
     // output's: its corners that still have faces here stay, pinned (never moved, never queued). Not
     // retired: faces near one that is or may become zero-area (so removeDegenerateFaces can still fix
     // it), and components of fewer than kRetireComponentFaces faces or less area than `minComponentArea`
-    // (so the whole-component clean-ups can still remove them). The decimator is compacted after.
-    // Returns how many faces were retired.
+    // (so the whole-component clean-ups can still remove them; the minimal closed blobs of noisy
+    // data have a few faces). The freed slots are filled by the next absorb. Returns how many faces
+    // were retired.
     size_t retireInterior(size_t rings, double minComponentArea);
-    static constexpr size_t kRetireComponentFaces = 256;
+    static constexpr size_t kRetireComponentFaces = 32;
     size_t retiredFaces() const { return mRetired.triangles.size(); }
 
     // Seconds this decimator spent in the parts of a final pass that run on all threads:
