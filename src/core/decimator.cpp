@@ -1189,6 +1189,11 @@ size_t Decimator::decimateRegionByRegion(size_t targetFaces, size_t regions)
 
 bool Decimator::degenerate(uint32_t f) const
 {
+    return degenerate(f, mZeroArea);
+}
+
+bool Decimator::degenerate(uint32_t f, double zeroArea) const
+{
     // Far flatter than the slivers collapses may not create (kMinShape): a face of a sphere squeezed
     // to 1e-6 of its width on two axes scores about 1e-6 and is no defect, only a thin shape.
     const auto& v = mFaces[f].v;
@@ -1200,7 +1205,7 @@ bool Decimator::degenerate(uint32_t f) const
     auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
     const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
     const V3 m = cross(sub(q1, q0), sub(q2, q0));
-    return 0.25 * dot(m, m) <= mZeroArea * mZeroArea;
+    return 0.25 * dot(m, m) <= zeroArea * zeroArea;
 }
 
 bool Decimator::dropFlatComponent(uint32_t seed)
@@ -1368,22 +1373,6 @@ size_t Decimator::removeDegenerateFaces()
     return remaining;
 }
 
-bool Decimator::mayBeZeroArea(uint32_t f) const
-{
-    const auto& v = mFaces[f].v;
-    const V3 &p0 = mGeom[v[0]].p, &p1 = mGeom[v[1]].p, &p2 = mGeom[v[2]].p;
-    const V3 n = cross(sub(p1, p0), sub(p2, p0));
-    const double edges = dot(sub(p1, p0), sub(p1, p0)) + dot(sub(p2, p1), sub(p2, p1)) + dot(sub(p0, p2), sub(p0, p2));
-    if (!(std::sqrt(dot(n, n)) > kDegenerateShape * edges)) return true;
-    auto rounded = [](const V3& p) { return V3{double(float(p[0])), double(float(p[1])), double(float(p[2]))}; };
-    const V3 q0 = rounded(p0), q1 = rounded(p1), q2 = rounded(p2);
-    const V3 m = cross(sub(q1, q0), sub(q2, q0));
-    // mMinPlaneWeight is kMinPlaneWeight voxel faces. The final pass's zero area is 1e-12 of the
-    // squared diagonal: below this bound for any surface under ~30,000 voxels across.
-    const double least = 2.0 * kRetireMinArea * mMinPlaneWeight / kMinPlaneWeight;
-    return !(std::sqrt(dot(n, n)) > least) || !(std::sqrt(dot(m, m)) > least);
-}
-
 size_t Decimator::retireInterior(size_t rings, double minComponentArea)
 {
     const uint32_t slots = uint32_t(mMeta.size());
@@ -1401,8 +1390,11 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
         if (mMeta[v].alive && !mMeta[v].final) keep(v);
     for (uint32_t v : mSeam)
         if (mMeta[v].alive) keep(v);
+    // mMinPlaneWeight is kMinPlaneWeight voxel faces. The final pass's zero area, 1e-12 of the squared
+    // diagonal, is below this one for any surface under ~30,000 voxels across.
+    const double mayBecomeZero = kRetireMinArea * mMinPlaneWeight / kMinPlaneWeight;
     for (uint32_t f = 0; f < mFaces.size(); ++f)
-        if (mFaces[f].alive() && mayBeZeroArea(f))
+        if (mFaces[f].alive() && degenerate(f, mayBecomeZero))
             for (uint32_t v : mFaces[f].v) keep(v);
     for (size_t i = 0; i < rings && !frontier.empty(); ++i) {
         next.clear();

@@ -373,6 +373,8 @@ private:
     bool edgeMayCollapse(uint32_t a, uint32_t b, EdgeLink& e);
     void mergeEnds(uint32_t a, uint32_t b, const EdgeLink& e, const std::array<double, 3>& target);
     bool degenerate(uint32_t f) const;
+    // The same test against another area (in the units of the positions, squared).
+    bool degenerate(uint32_t f, double zeroArea) const;
     bool dropFlatComponent(uint32_t seedFace);
     // A connected component (faces sharing vertices): its area, first face and faces.
     struct Component {
@@ -393,9 +395,8 @@ private:
     // Appends this decimator's live mesh to `out`, which holds the retired part.
     template <typename VerticesRead, typename FacesRead>
     void collectMesh(Mesh& out, VerticesRead verticesRead, FacesRead facesRead) const;
-    // A face that is or may become zero-area after collapses around it: degenerate in shape, or of less
-    // area than kRetireMinArea voxel faces in double or in float.
-    bool mayBeZeroArea(uint32_t f) const;
+    // A face of less area than this many voxel faces (or degenerate in shape) may become zero-area after
+    // collapses around it: retireInterior keeps it live.
     static constexpr double kRetireMinArea = 1e-3;
 
     ChunkedVector<VertexGeom> mGeom;
