@@ -87,12 +87,11 @@ struct Options {
     // 0 (default): no bound.
     double maxError = 0.0;
     // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
-    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0] with retireAboveFaces 0), each slab
-    // continues from a copy of one level to the next rate, every level is joined and finished like a
-    // single-rate run and handed to onLevel as soon as it is made (so a caller can write it and let it
-    // go), finest first; the Result
-    // holds the last level and Report::levels one entry per level. ratio is ignored; targetFaces must
-    // be 0.
+    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0] with
+    // retireAboveFaces 0), each slab continues from a copy of one level to the next rate, every level
+    // is joined and finished like a single-rate run and handed to onLevel as soon as it is made (so a
+    // caller can write it and let it go), finest first; the Result holds the last level and
+    // Report::levels one entry per level. ratio is ignored; targetFaces must be 0.
     std::vector<double> lods;
     std::function<void(const LevelOfDetail&)> onLevel;
     // Grids sampled trilinearly at every output vertex (float, double: one value; vec3: three), each in

@@ -1698,10 +1698,10 @@ Mesh Decimator::takeMesh()
     mDrift = {};
     mAttrQ = {};
     const Stopwatch collection;
-    // Exactly the output's size (a vector grown past its capacity holds both copies while it moves):
-    // the retired part first, freed as it is copied.
-    // The chunks go back to the heap, not to the system, and the output's arrays are fresh pages: the
-    // heap's free pages are handed back every few megabytes copied.
+    // Exactly the output's size (a vector grown past its capacity holds both copies while it moves),
+    // the retired part first, freed as it is copied. Its chunks go back to the heap, not to the system,
+    // while the output's arrays take fresh pages: the heap's free pages are handed back every few
+    // megabytes copied.
     Mesh m;
     m.points.reserve(mRetired.points.size() + mVertexCount - mPinnedAt.size());
     m.triangles.reserve(mFaceCount);
