@@ -1468,6 +1468,8 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     // A corner without faces here leaves; one with faces stays, pinned. Either way its queue entries
     // and refusals go (a pinned vertex is never queued again).
     for (const auto& pinned : mPinnedAt) corners.push_back(pinned.first);
+    // In slot order: the slots freed here are the next ones reused, which the map's order must not decide.
+    std::sort(corners.begin(), corners.end());
     for (uint32_t v : corners) {
         if (!mMeta[v].alive) continue;
         if (mMeta[v].head == kNone) {
