@@ -1412,17 +1412,8 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     next = {};
     // Components by union-find: small ones stay whole (dropSmallComponents, pruneComponents); one with
     // a pinned vertex has retired faces already.
-    std::vector<uint32_t> parent(slots);
-    for (uint32_t v = 0; v < slots; ++v) parent[v] = v;
-    const auto find = [&](uint32_t v) {
-        while (parent[v] != v) v = parent[v] = parent[parent[v]];
-        return v;
-    };
-    for (const Face& f : mFaces)
-        if (f.alive()) {
-            parent[find(f.v[1])] = find(f.v[0]);
-            parent[find(f.v[2])] = find(f.v[0]);
-        }
+    const std::vector<uint32_t> roots = componentRoots();
+    const auto find = [&](uint32_t v) { return roots[v]; };
     struct Size {
         uint64_t faces = 0;
         double area = 0;
@@ -1490,12 +1481,12 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     return retired;
 }
 
-std::vector<Decimator::Component> Decimator::componentsByArea() const
+std::vector<uint32_t> Decimator::componentRoots() const
 {
-    // Components by union-find over the vertices of live faces.
+    // Union-find over the vertices of live faces.
     std::vector<uint32_t> parent(mMeta.size());
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
-    auto find = [&](uint32_t v) {
+    const auto find = [&](uint32_t v) {
         while (parent[v] != v) v = parent[v] = parent[parent[v]];
         return v;
     };
@@ -1504,6 +1495,14 @@ std::vector<Decimator::Component> Decimator::componentsByArea() const
             parent[find(f.v[1])] = find(f.v[0]);
             parent[find(f.v[2])] = find(f.v[0]);
         }
+    for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = find(v);
+    return parent;
+}
+
+std::vector<Decimator::Component> Decimator::componentsByArea() const
+{
+    const std::vector<uint32_t> roots = componentRoots();
+    const auto find = [&](uint32_t v) { return roots[v]; };
     // A component with a pinned vertex goes on in the retired mesh: it is no candidate.
     constexpr int64_t kRetiredPart = -2;
     std::vector<int64_t> index(mMeta.size(), -1);

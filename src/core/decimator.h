@@ -385,6 +385,8 @@ private:
     // Every component of the live mesh, smallest area first (ties: lowest first face), for the
     // clean-ups that remove whole components (dropSmallComponents, pruneComponents).
     std::vector<Component> componentsByArea() const;
+    // Per vertex slot, a representative of its component (faces sharing vertices).
+    std::vector<uint32_t> componentRoots() const;
     void dropComponent(const Component& c);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
     // What collapse() checks of ab before cost and bound: Refused when the link condition forbids it
