@@ -352,6 +352,14 @@ std::array<BlockMesh, 2> ellipsoidHalves(int levels = 4)
     return halves;
 }
 
+// A piece as another process reads it: written to bytes and read back.
+SlabPiece afterTheTrip(SlabPiece&& piece)
+{
+    std::vector<char> bytes;
+    writePieceBytes(std::move(piece), bytes);
+    return readPieceBytes(bytes.data(), bytes.size());
+}
+
 TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
 {
     // A merge joins a piece made in this process or one read from the bytes another process sent:
@@ -367,9 +375,7 @@ TEST(Decimator, PieceAbsorbedAfterItsBytesGivesTheSameMesh)
         SlabPiece piece{upper.takePiece(), 1000, {}};
         EXPECT_EQ(upper.faceCount(), 0u);
         if (throughBytes) {
-            std::vector<char> bytes;
-            writePieceBytes(std::move(piece), bytes);
-            piece = readPieceBytes(bytes.data(), bytes.size());
+            piece = afterTheTrip(std::move(piece));
             EXPECT_EQ(piece.facesGenerated, 1000u);
         }
         lower.absorb(std::move(piece.mesh));
@@ -433,9 +439,7 @@ TEST(Decimator, RetiringTheInteriorChangesNoFaceAndTravelsWithThePiece)
         Decimator copy;
         SlabPiece piece{Decimator(d).takePiece(), 1000, {}, true};
         if (throughBytes) {
-            std::vector<char> bytes;
-            writePieceBytes(std::move(piece), bytes);
-            piece = readPieceBytes(bytes.data(), bytes.size());
+            piece = afterTheTrip(std::move(piece));
             EXPECT_TRUE(piece.roomSpent);
         }
         copy.absorb(std::move(piece.mesh));
@@ -467,9 +471,7 @@ TEST(Decimator, APieceKeepsWhyItsPairsWereRefused)
         ASSERT_TRUE(upper.boundRefusesAnEdge());
         SlabPiece piece{upper.takePiece(), 0, {}};
         if (throughBytes) {
-            std::vector<char> bytes;
-            writePieceBytes(std::move(piece), bytes);
-            piece = readPieceBytes(bytes.data(), bytes.size());
+            piece = afterTheTrip(std::move(piece));
         }
         EXPECT_FALSE(lower.boundRefusesAnEdge());
         lower.absorb(std::move(piece.mesh));
@@ -509,10 +511,8 @@ TEST(Decimator, AQueueThatForgetsItsColdEntriesMakesTheSameCollapses)
             SlabPiece piece{upper.takePiece(), 0, {}};
             EXPECT_EQ(piece.mesh.forgetFromBits != 0, forget);
             if (join == Join::Bytes) {
-                std::vector<char> bytes;
                 const uint32_t bar = piece.mesh.forgetFromBits;
-                writePieceBytes(std::move(piece), bytes);
-                piece = readPieceBytes(bytes.data(), bytes.size());
+                piece = afterTheTrip(std::move(piece));
                 EXPECT_EQ(piece.mesh.forgetFromBits, bar);
             }
             lower.absorb(std::move(piece.mesh));

@@ -740,16 +740,12 @@ void Decimator::absorbFrom(Source& from)
     // The other side's retired faces follow this side's; its pinned vertices point there.
     RetiredMesh retired = from.takeRetired();
     const uint32_t offset = uint32_t(mRetired.points.size());
-    for (size_t i = 0; i < retired.points.size(); ++i) {
-        mRetired.points.emplace_back() = retired.points[i];
-        retired.points.releaseThrough(i);
-    }
-    for (size_t i = 0; i < retired.triangles.size(); ++i) {
-        const auto& t = retired.triangles[i];
-        mRetired.triangles.emplace_back() = {t[0] + offset, t[1] + offset, t[2] + offset};
-        retired.triangles.releaseThrough(i);
-    }
     mFaceCount += retired.triangles.size();
+    const auto nothingAhead = [](const auto&) {};
+    drainInRuns(retired.points, nothingAhead, [&](const std::array<float, 3>& p) { mRetired.points.emplace_back() = p; });
+    drainInRuns(retired.triangles, nothingAhead, [&](const std::array<uint32_t, 3>& t) {
+        mRetired.triangles.emplace_back() = {t[0] + offset, t[1] + offset, t[2] + offset};
+    });
     retired = {};
     for (const auto& [v, at] : from.takePinned()) {
         mMeta[remap[v]].pinned = true;
@@ -1471,10 +1467,9 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
             mPinnedAt.emplace(v, at[v]);
         }
     }
-    retryRefused([](const Refused&) { return false; });  // drops the pairs of vertices gone
     size_t kept = 0;
     for (const Refused& r : mRefused)
-        if (!mMeta[r.a].pinned && !mMeta[r.b].pinned) mRefused[kept++] = r;
+        if (liveFinalPair(r.a, r.b)) mRefused[kept++] = r;
     mRefused.truncate(kept);
     // The slots of what left are reused by the next join's absorb; the queue drops their entries now.
     compactQueue();
@@ -1707,16 +1702,14 @@ Mesh Decimator::takeMesh()
     m.points.reserve(mRetired.points.size() + mVertexCount - mPinnedAt.size());
     m.triangles.reserve(mFaceCount);
     constexpr size_t kTrimEvery = size_t(1) << 20;  // records of 12 bytes
-    for (size_t i = 0; i < mRetired.points.size(); ++i) {
-        m.points.push_back(mRetired.points[i]);
-        mRetired.points.releaseThrough(i);
-        if ((i + 1) % kTrimEvery == 0) malloc_trim(0);
-    }
-    for (size_t i = 0; i < mRetired.triangles.size(); ++i) {
-        m.triangles.push_back(mRetired.triangles[i]);
-        mRetired.triangles.releaseThrough(i);
-        if ((i + 1) % kTrimEvery == 0) malloc_trim(0);
-    }
+    const auto moveOut = [](auto& from, auto& to) {
+        drainInRuns(from, [](const auto&) {}, [&](const auto& x) {
+            to.push_back(x);
+            if (to.size() % kTrimEvery == 0) malloc_trim(0);
+        });
+    };
+    moveOut(mRetired.points, m.points);
+    moveOut(mRetired.triangles, m.triangles);
     mRetired = {};
     malloc_trim(0);
     collectMesh(
