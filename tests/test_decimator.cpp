@@ -458,6 +458,50 @@ TEST(Decimator, RetiringTheInteriorChangesNoFaceAndTravelsWithThePiece)
     testing::expectClosedOutward(home, false, "decimated after retiring");
 }
 
+TEST(Decimator, RetiredComponentsGoLikeLiveOnes)
+{
+    // Three closed ellipsoids of 128 faces, 1, 2 and 4 across. The middle one keeps live faces around
+    // its six open corners (the rest of it retires, the corners between pinned); the others retire
+    // whole. The clean-ups that remove whole components take retired faces along, and the output
+    // keeps no point of theirs.
+    BlockMesh b;
+    for (int i = 0; i < 3; ++i) {
+        const BlockMesh e = ellipsoid(2, {1.0, 0.8, 0.6}, double(1 << i));
+        const uint32_t base = uint32_t(b.positions.size());
+        for (size_t k = 0; k < e.positions.size(); ++k) {
+            b.keys.push_back(makeEdgeKey(int32_t(base + k), 0, 0, 0));
+            b.positions.push_back({e.positions[k][0] + 20.0 * i, e.positions[k][1], e.positions[k][2]});
+            b.finalAfterBlock.push_back(i == 1 && k < 6 ? 0 : 1);
+        }
+        for (const auto& t : e.triangles) b.triangles.push_back({base + t[0], base + t[1], base + t[2]});
+    }
+    const auto retired = [&] {
+        Decimator d;
+        d.addBlock(b);
+        d.retireInterior(0, 0.0);
+        d.finalizeRemaining();
+        return d;
+    };
+    const auto expectTheLargestAlone = [](const Decimator& d, const std::string& what) {
+        EXPECT_EQ(d.faceCount(), 128u) << what;
+        const Mesh m = d.mesh();
+        EXPECT_EQ(m.triangles.size(), 128u) << what;
+        EXPECT_EQ(m.points.size(), 66u) << what;
+        for (const auto& p : m.points) EXPECT_GT(p[0], 30.0f) << what;  // the largest one is at x = 40
+        testing::expectClosedOutward(m, false, what);
+    };
+    Decimator drop = retired();
+    std::printf("%zu of 384 faces retired\n", drop.retiredFaces());
+    EXPECT_GT(drop.retiredFaces(), 256u);
+    EXPECT_LT(drop.retiredFaces(), 384u);
+    EXPECT_EQ(drop.faceCount(), 384u);
+    EXPECT_EQ(drop.dropSmallComponents(200), 2u);
+    expectTheLargestAlone(drop, "dropSmallComponents");
+    Decimator prune = retired();
+    EXPECT_EQ(prune.pruneComponents(60.0), 2u);  // areas about 7, 30 and 120
+    expectTheLargestAlone(prune, "pruneComponents");
+}
+
 TEST(Decimator, APieceKeepsWhyItsPairsWereRefused)
 {
     // Pairs the bound refused in a slab stay the bound's after a merge, in this process or through the

@@ -150,7 +150,9 @@ struct Report {
     uint64_t maxUncontractibleFaces = 0;
     uint64_t componentsDropped = 0;   // small closed components removed to reach the face target
     uint64_t componentsPruned = 0;    // closed components below Options::minComponentArea removed
-    uint64_t facesRetired = 0;        // output faces written out before the final pass (Options::retireAboveFaces)
+    // Faces set aside before the final pass, never collapsed again (Options::retireAboveFaces); the
+    // clean-up that drops small components to reach the target may still remove some.
+    uint64_t facesRetired = 0;
     uint64_t unfinalizedAtEnd = 0;    // vertices never finalised by the block rule (0 when correct)
     // The decimation's work, every level of a chain included: queue entries popped, of which entries
     // of a dead vertex, stale entries queued again and collapses attempted; and the collapses they made

@@ -1414,7 +1414,7 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
         uint64_t faces = 0;
         double area = 0;
     };
-    std::vector<Size> size(slots);
+    std::vector<Size> size(roots.size());
     for (const Face& f : mFaces)
         if (f.alive()) {
             Size& c = size[find(f.v[0])];
@@ -1478,18 +1478,23 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
 
 std::vector<uint32_t> Decimator::componentRoots() const
 {
-    // Union-find over the vertices of live faces.
-    std::vector<uint32_t> parent(mMeta.size());
+    // Union-find over the vertices of live faces and the points of retired ones, which pinned
+    // vertices join.
+    const uint32_t slots = uint32_t(mMeta.size());
+    std::vector<uint32_t> parent(slots + mRetired.points.size());
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
     const auto find = [&](uint32_t v) {
         while (parent[v] != v) v = parent[v] = parent[parent[v]];
         return v;
     };
+    const auto join = [&](const std::array<uint32_t, 3>& t, uint32_t base) {
+        parent[find(base + t[1])] = find(base + t[0]);
+        parent[find(base + t[2])] = find(base + t[0]);
+    };
     for (const Face& f : mFaces)
-        if (f.alive()) {
-            parent[find(f.v[1])] = find(f.v[0]);
-            parent[find(f.v[2])] = find(f.v[0]);
-        }
+        if (f.alive()) join(f.v, 0);
+    for (size_t i = 0; i < mRetired.triangles.size(); ++i) join(mRetired.triangles[i], slots);
+    for (const auto& [v, at] : mPinnedAt) parent[find(slots + at)] = find(v);
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = find(v);
     return parent;
 }
@@ -1497,26 +1502,33 @@ std::vector<uint32_t> Decimator::componentRoots() const
 std::vector<Decimator::Component> Decimator::componentsByArea() const
 {
     const std::vector<uint32_t> roots = componentRoots();
-    const auto find = [&](uint32_t v) { return roots[v]; };
-    // A component with a pinned vertex goes on in the retired mesh: it is no candidate.
-    constexpr int64_t kRetiredPart = -2;
-    std::vector<int64_t> index(mMeta.size(), -1);
-    for (const auto& pinned : mPinnedAt) index[find(pinned.first)] = kRetiredPart;
+    const uint32_t slots = uint32_t(mMeta.size());
+    std::vector<int64_t> index(roots.size(), -1);
     std::vector<Component> comps;
-    for (uint32_t f = 0; f < mFaces.size(); ++f) {
-        if (!mFaces[f].alive()) continue;
-        const uint32_t root = find(mFaces[f].v[0]);
-        if (index[root] == kRetiredPart) continue;
+    const auto component = [&](uint32_t root, uint64_t first) -> Component& {
         if (index[root] < 0) {
             index[root] = int64_t(comps.size());
-            comps.emplace_back();
-            comps.back().firstFace = f;
+            comps.emplace_back().firstFace = first;
         }
-        Component& c = comps[size_t(index[root])];
+        return comps[size_t(index[root])];
+    };
+    const auto area = [](const auto& a, const auto& b, const auto& c) {
+        const V3 n = cross(V3{double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]},
+                           V3{double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]});
+        return 0.5 * std::sqrt(dot(n, n));
+    };
+    for (uint32_t f = 0; f < mFaces.size(); ++f) {
+        if (!mFaces[f].alive()) continue;
         const auto& v = mFaces[f].v;
-        const V3 n = cross(sub(mGeom[v[1]].p, mGeom[v[0]].p), sub(mGeom[v[2]].p, mGeom[v[0]].p));
-        c.area += 0.5 * std::sqrt(dot(n, n));
+        Component& c = component(roots[v[0]], f);
+        c.area += area(mGeom[v[0]].p, mGeom[v[1]].p, mGeom[v[2]].p);
         c.faces.push_back(f);
+    }
+    for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
+        const auto& t = mRetired.triangles[i];
+        Component& c = component(roots[slots + t[0]], uint64_t(mFaces.size()) + i);
+        c.area += area(mRetired.points[t[0]], mRetired.points[t[1]], mRetired.points[t[2]]);
+        c.retired.push_back(i);
     }
     std::sort(comps.begin(), comps.end(), [](const Component& a, const Component& b) {
         return a.area != b.area ? a.area < b.area : a.firstFace < b.firstFace;
@@ -1524,7 +1536,7 @@ std::vector<Decimator::Component> Decimator::componentsByArea() const
     return comps;
 }
 
-void Decimator::dropComponent(const Component& c)
+void Decimator::dropComponent(const Component& c, std::vector<uint32_t>& retiredGone)
 {
     std::vector<uint32_t> verts;
     for (uint32_t f : c.faces) {
@@ -1534,25 +1546,73 @@ void Decimator::dropComponent(const Component& c)
     std::sort(verts.begin(), verts.end());
     verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
     for (uint32_t v : verts) killVertex(v);
+    retiredGone.insert(retiredGone.end(), c.retired.begin(), c.retired.end());
+    mFaceCount -= c.retired.size();
+}
+
+void Decimator::dropRetired(std::vector<uint32_t> gone)
+{
+    if (gone.empty()) return;
+    std::sort(gone.begin(), gone.end());
+    const size_t points = mRetired.points.size();
+    std::vector<uint32_t> renumber(points, kNone);
+    size_t g = 0;
+    for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
+        if (g < gone.size() && gone[g] == i) {
+            ++g;
+            continue;
+        }
+        for (uint32_t p : mRetired.triangles[i]) renumber[p] = 0;
+    }
+    // The points that stay keep their order.
+    RetiredMesh kept;
+    for (size_t p = 0; p < points; ++p)
+        if (renumber[p] == 0) {
+            renumber[p] = uint32_t(kept.points.size());
+            kept.points.emplace_back() = mRetired.points[p];
+        }
+    g = 0;
+    for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
+        if (g < gone.size() && gone[g] == i) {
+            ++g;
+            continue;
+        }
+        const auto& t = mRetired.triangles[i];
+        kept.triangles.emplace_back() = {renumber[t[0]], renumber[t[1]], renumber[t[2]]};
+    }
+    mRetired = std::move(kept);
+    // A pinned vertex whose retired faces all went has no point left: its live faces went with them
+    // (the same component), so it dies.
+    std::vector<uint32_t> orphans;
+    for (auto& [v, at] : mPinnedAt) {
+        if (renumber[at] == kNone) orphans.push_back(v);
+        else at = renumber[at];
+    }
+    std::sort(orphans.begin(), orphans.end());
+    for (uint32_t v : orphans) killVertex(v);
 }
 
 size_t Decimator::dropSmallComponents(size_t targetFaces)
 {
     if (mFaceCount <= targetFaces) return 0;
     const std::vector<Component> comps = componentsByArea();
+    std::vector<uint32_t> retiredGone;
     size_t dropped = 0;
     for (size_t i = 0; i + 1 < comps.size() && mFaceCount > targetFaces; ++i) {
-        dropComponent(comps[i]);
+        dropComponent(comps[i], retiredGone);
         ++dropped;
     }
+    dropRetired(std::move(retiredGone));
     return dropped;
 }
 
 size_t Decimator::pruneComponents(double minArea)
 {
     const std::vector<Component> comps = componentsByArea();
+    std::vector<uint32_t> retiredGone;
     size_t dropped = 0;
-    for (; dropped < comps.size() && comps[dropped].area < minArea; ++dropped) dropComponent(comps[dropped]);
+    for (; dropped < comps.size() && comps[dropped].area < minArea; ++dropped) dropComponent(comps[dropped], retiredGone);
+    dropRetired(std::move(retiredGone));
     return dropped;
 }
 

@@ -151,9 +151,9 @@ public:
     // output's: its corners that still have faces here stay, pinned (never moved, never queued). Not
     // retired: faces near one that is or may become zero-area (so removeDegenerateFaces can still fix
     // it), and components of fewer than kRetireComponentFaces faces or less area than `minComponentArea`
-    // (so the whole-component clean-ups can still remove them; the minimal closed blobs of noisy
-    // data have a few faces). The freed slots are filled by the next absorb. Returns how many faces
-    // were retired.
+    // (the minimal closed blobs of noisy data have a few faces, and the whole-component clean-ups
+    // remove them most: a retired one costs those a rewrite of the retired mesh). The freed slots are
+    // filled by the next absorb. Returns how many faces were retired.
     size_t retireInterior(size_t rings, double minComponentArea);
     static constexpr size_t kRetireComponentFaces = 32;
     size_t retiredFaces() const { return mRetired.triangles.size(); }
@@ -376,18 +376,28 @@ private:
     // The same test against another area (in the units of the positions, squared).
     bool degenerate(uint32_t f, double zeroArea) const;
     bool dropFlatComponent(uint32_t seedFace);
-    // A connected component (faces sharing vertices): its area, first face and faces.
+    // A connected component (faces sharing vertices, a pinned vertex shared with its retired point):
+    // its area, first face (a live face's slot, or the slots' count plus a retired face's number), its
+    // live faces and its retired ones.
     struct Component {
         double area = 0;
-        uint32_t firstFace = UINT32_MAX;
+        uint64_t firstFace = UINT64_MAX;
         std::vector<uint32_t> faces;
+        std::vector<uint32_t> retired;
     };
-    // Every component of the live mesh, smallest area first (ties: lowest first face), for the
-    // clean-ups that remove whole components (dropSmallComponents, pruneComponents).
+    // Every component of the surface, live and retired parts together, smallest area first (ties:
+    // lowest first face), for the clean-ups that remove whole components (dropSmallComponents,
+    // pruneComponents).
     std::vector<Component> componentsByArea() const;
-    // Per vertex slot, a representative of its component (faces sharing vertices).
+    // A representative of each one's component: per vertex slot, then per retired point (at the
+    // slots' count plus its number).
     std::vector<uint32_t> componentRoots() const;
-    void dropComponent(const Component& c);
+    // Removes c's live faces and vertices; its retired faces are counted out here and appended to
+    // `retiredGone`, for dropRetired once every component is dropped.
+    void dropComponent(const Component& c, std::vector<uint32_t>& retiredGone);
+    // Rewrites the retired mesh without the faces `gone` names and the points only they used; a
+    // pinned vertex follows its point, or dies with it.
+    void dropRetired(std::vector<uint32_t> gone);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
     // What collapse() checks of ab before cost and bound: Refused when the link condition forbids it
     // (edgeMayCollapse fills `e`), Folds when none of its placements (filled in `places`, cheapest
