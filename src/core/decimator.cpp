@@ -1407,26 +1407,28 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     frontier = {};
     next = {};
     // Components by union-find: small ones stay whole (dropSmallComponents, pruneComponents); one with
-    // a pinned vertex has retired faces already.
-    const std::vector<uint32_t> roots = componentRoots();
+    // a pinned vertex has retired faces already (so the live faces are all this needs to join).
+    const std::vector<uint32_t> roots = componentRoots(false);
     const auto find = [&](uint32_t v) { return roots[v]; };
     struct Size {
         uint64_t faces = 0;
         double area = 0;
     };
     std::vector<Size> size(roots.size());
+    const bool areas = minComponentArea > 0;  // every area passes a bound of 0
     for (const Face& f : mFaces)
         if (f.alive()) {
             Size& c = size[find(f.v[0])];
-            const V3 n = cross(sub(mGeom[f.v[1]].p, mGeom[f.v[0]].p), sub(mGeom[f.v[2]].p, mGeom[f.v[0]].p));
             ++c.faces;
+            if (!areas) continue;
+            const V3 n = cross(sub(mGeom[f.v[1]].p, mGeom[f.v[0]].p), sub(mGeom[f.v[2]].p, mGeom[f.v[0]].p));
             c.area += 0.5 * std::sqrt(dot(n, n));
         }
     for (const auto& pinned : mPinnedAt) size[find(pinned.first)].faces = UINT64_MAX;
     const auto retires = [&](const Face& f) {
         if (near[f.v[0]] || near[f.v[1]] || near[f.v[2]]) return false;
         const Size& c = size[find(f.v[0])];
-        return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && c.area >= minComponentArea);
+        return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && (!areas || c.area >= minComponentArea));
     };
     // Faces in slot order, their corners numbered as they first appear (a pinned one has its number).
     std::vector<uint32_t> at(slots, kNone);
@@ -1476,12 +1478,12 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     return retired;
 }
 
-std::vector<uint32_t> Decimator::componentRoots() const
+std::vector<uint32_t> Decimator::componentRoots(bool withRetired) const
 {
     // Union-find over the vertices of live faces and the points of retired ones, which pinned
     // vertices join.
     const uint32_t slots = uint32_t(mMeta.size());
-    std::vector<uint32_t> parent(slots + mRetired.points.size());
+    std::vector<uint32_t> parent(slots + (withRetired ? mRetired.points.size() : 0));
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
     const auto find = [&](uint32_t v) {
         while (parent[v] != v) v = parent[v] = parent[parent[v]];
@@ -1493,15 +1495,17 @@ std::vector<uint32_t> Decimator::componentRoots() const
     };
     for (const Face& f : mFaces)
         if (f.alive()) join(f.v, 0);
-    for (size_t i = 0; i < mRetired.triangles.size(); ++i) join(mRetired.triangles[i], slots);
-    for (const auto& [v, at] : mPinnedAt) parent[find(slots + at)] = find(v);
+    if (withRetired) {
+        for (size_t i = 0; i < mRetired.triangles.size(); ++i) join(mRetired.triangles[i], slots);
+        for (const auto& [v, at] : mPinnedAt) parent[find(slots + at)] = find(v);
+    }
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = find(v);
     return parent;
 }
 
 std::vector<Decimator::Component> Decimator::componentsByArea() const
 {
-    const std::vector<uint32_t> roots = componentRoots();
+    const std::vector<uint32_t> roots = componentRoots(true);
     const uint32_t slots = uint32_t(mMeta.size());
     std::vector<int64_t> index(roots.size(), -1);
     std::vector<Component> comps;

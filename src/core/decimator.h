@@ -389,9 +389,9 @@ private:
     // lowest first face), for the clean-ups that remove whole components (dropSmallComponents,
     // pruneComponents).
     std::vector<Component> componentsByArea() const;
-    // A representative of each one's component: per vertex slot, then per retired point (at the
-    // slots' count plus its number).
-    std::vector<uint32_t> componentRoots() const;
+    // A representative of each one's component: per vertex slot, then, `withRetired`, per retired
+    // point (at the slots' count plus its number), joined to the live part by the pinned vertices.
+    std::vector<uint32_t> componentRoots(bool withRetired) const;
     // Removes c's live faces and vertices; its retired faces are counted out here and appended to
     // `retiredGone`, for dropRetired once every component is dropped.
     void dropComponent(const Component& c, std::vector<uint32_t>& retiredGone);
