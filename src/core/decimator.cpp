@@ -1480,8 +1480,8 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
 
 std::vector<uint32_t> Decimator::componentRoots(bool withRetired) const
 {
-    // Union-find over the vertices of live faces and the points of retired ones, which pinned
-    // vertices join.
+    // Union-find over the vertices of live faces and, withRetired, the points of retired faces, which
+    // the pinned vertices join.
     const uint32_t slots = uint32_t(mMeta.size());
     std::vector<uint32_t> parent(slots + (withRetired ? mRetired.points.size() : 0));
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
