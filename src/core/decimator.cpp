@@ -63,6 +63,15 @@ double pointTriangleDistance2(const V3& p, const V3& a, const V3& b, const V3& c
     return dist2({a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w, a[2] + ab[2] * v + ac[2] * w});
 }
 
+// Area of triangle (a, b, c), its corners in double (live vertices) or float (retired points).
+template <typename P>
+double triangleArea(const P& a, const P& b, const P& c)
+{
+    const V3 n = cross(V3{double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]},
+                       V3{double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]});
+    return 0.5 * std::sqrt(dot(n, n));
+}
+
 } // namespace
 
 uint32_t Decimator::newVertex(const std::array<double, 3>& p)
@@ -1415,20 +1424,18 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
         double area = 0;
     };
     std::vector<Size> size(roots.size());
-    const bool areas = minComponentArea > 0;  // every area passes a bound of 0
+    const bool areas = minComponentArea > 0;  // a bound of 0 passes any area, 0 included
     for (const Face& f : mFaces)
         if (f.alive()) {
             Size& c = size[find(f.v[0])];
             ++c.faces;
-            if (!areas) continue;
-            const V3 n = cross(sub(mGeom[f.v[1]].p, mGeom[f.v[0]].p), sub(mGeom[f.v[2]].p, mGeom[f.v[0]].p));
-            c.area += 0.5 * std::sqrt(dot(n, n));
+            if (areas) c.area += triangleArea(mGeom[f.v[0]].p, mGeom[f.v[1]].p, mGeom[f.v[2]].p);
         }
     for (const auto& pinned : mPinnedAt) size[find(pinned.first)].faces = UINT64_MAX;
     const auto retires = [&](const Face& f) {
         if (near[f.v[0]] || near[f.v[1]] || near[f.v[2]]) return false;
         const Size& c = size[find(f.v[0])];
-        return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && (!areas || c.area >= minComponentArea));
+        return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && c.area >= minComponentArea);
     };
     // Faces in slot order, their corners numbered as they first appear (a pinned one has its number).
     std::vector<uint32_t> at(slots, kNone);
@@ -1516,22 +1523,17 @@ std::vector<Decimator::Component> Decimator::componentsByArea() const
         }
         return comps[size_t(index[root])];
     };
-    const auto area = [](const auto& a, const auto& b, const auto& c) {
-        const V3 n = cross(V3{double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]},
-                           V3{double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]});
-        return 0.5 * std::sqrt(dot(n, n));
-    };
     for (uint32_t f = 0; f < mFaces.size(); ++f) {
         if (!mFaces[f].alive()) continue;
         const auto& v = mFaces[f].v;
         Component& c = component(roots[v[0]], f);
-        c.area += area(mGeom[v[0]].p, mGeom[v[1]].p, mGeom[v[2]].p);
+        c.area += triangleArea(mGeom[v[0]].p, mGeom[v[1]].p, mGeom[v[2]].p);
         c.faces.push_back(f);
     }
     for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
         const auto& t = mRetired.triangles[i];
         Component& c = component(roots[slots + t[0]], uint64_t(mFaces.size()) + i);
-        c.area += area(mRetired.points[t[0]], mRetired.points[t[1]], mRetired.points[t[2]]);
+        c.area += triangleArea(mRetired.points[t[0]], mRetired.points[t[1]], mRetired.points[t[2]]);
         c.retired.push_back(i);
     }
     std::sort(comps.begin(), comps.end(), [](const Component& a, const Component& b) {
@@ -1554,20 +1556,16 @@ void Decimator::dropComponent(const Component& c, std::vector<uint32_t>& retired
     mFaceCount -= c.retired.size();
 }
 
-void Decimator::dropRetired(std::vector<uint32_t> gone)
+void Decimator::dropRetired(const std::vector<uint32_t>& gone)
 {
     if (gone.empty()) return;
-    std::sort(gone.begin(), gone.end());
+    std::vector<uint8_t> stays(mRetired.triangles.size(), 1);
+    for (uint32_t i : gone) stays[i] = 0;
     const size_t points = mRetired.points.size();
     std::vector<uint32_t> renumber(points, kNone);
-    size_t g = 0;
-    for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
-        if (g < gone.size() && gone[g] == i) {
-            ++g;
-            continue;
-        }
-        for (uint32_t p : mRetired.triangles[i]) renumber[p] = 0;
-    }
+    for (uint32_t i = 0; i < stays.size(); ++i)
+        if (stays[i])
+            for (uint32_t p : mRetired.triangles[i]) renumber[p] = 0;
     // The points that stay keep their order.
     RetiredMesh kept;
     for (size_t p = 0; p < points; ++p)
@@ -1575,15 +1573,11 @@ void Decimator::dropRetired(std::vector<uint32_t> gone)
             renumber[p] = uint32_t(kept.points.size());
             kept.points.emplace_back() = mRetired.points[p];
         }
-    g = 0;
-    for (uint32_t i = 0; i < mRetired.triangles.size(); ++i) {
-        if (g < gone.size() && gone[g] == i) {
-            ++g;
-            continue;
+    for (uint32_t i = 0; i < stays.size(); ++i)
+        if (stays[i]) {
+            const auto& t = mRetired.triangles[i];
+            kept.triangles.emplace_back() = {renumber[t[0]], renumber[t[1]], renumber[t[2]]};
         }
-        const auto& t = mRetired.triangles[i];
-        kept.triangles.emplace_back() = {renumber[t[0]], renumber[t[1]], renumber[t[2]]};
-    }
     mRetired = std::move(kept);
     // A pinned vertex whose retired faces all went has no point left: its live faces went with them
     // (the same component), so it dies.
@@ -1606,7 +1600,7 @@ size_t Decimator::dropSmallComponents(size_t targetFaces)
         dropComponent(comps[i], retiredGone);
         ++dropped;
     }
-    dropRetired(std::move(retiredGone));
+    dropRetired(retiredGone);
     return dropped;
 }
 
@@ -1616,7 +1610,7 @@ size_t Decimator::pruneComponents(double minArea)
     std::vector<uint32_t> retiredGone;
     size_t dropped = 0;
     for (; dropped < comps.size() && comps[dropped].area < minArea; ++dropped) dropComponent(comps[dropped], retiredGone);
-    dropRetired(std::move(retiredGone));
+    dropRetired(retiredGone);
     return dropped;
 }
 

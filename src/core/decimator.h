@@ -397,7 +397,7 @@ private:
     void dropComponent(const Component& c, std::vector<uint32_t>& retiredGone);
     // Rewrites the retired mesh without the faces `gone` names and the points only they used; a
     // pinned vertex follows its point, or dies with it.
-    void dropRetired(std::vector<uint32_t> gone);
+    void dropRetired(const std::vector<uint32_t>& gone);
     bool facesStayValid(uint32_t moved, uint32_t other, const std::array<double, 3>& p) const;
     // What collapse() checks of ab before cost and bound: Refused when the link condition forbids it
     // (edgeMayCollapse fills `e`), Folds when none of its placements (filled in `places`, cheapest
