@@ -10,7 +10,6 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
-#include <openvdb/tools/Prune.h>
 #include <openvdb/tools/ValueTransformer.h>
 #include <openvdb/math/Maps.h>
 
@@ -165,26 +164,14 @@ int main(int argc, char** argv)
         out = g;
     } else if (kind == "gyroid-band") {
         out = gyroidBand(size, period, voxel);
+    } else if (kind == "noise") {
+        out = vdb_isosimp::volumes::noiseFog(size, seed, voxel);
     } else {
-        auto g = openvdb::FloatGrid::create(0.0f);
-        g->setGridClass(openvdb::GRID_FOG_VOLUME);
-        g->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
-        auto acc = g->getAccessor();
-        for (int z = 0; z < size; ++z)
-            for (int y = 0; y < size; ++y)
-                for (int x = 0; x < size; ++x) {
-                    double v;
-                    if (kind == "noise") {
-                        v = vdb_isosimp::volumes::fractalNoise(x, y, z, size, seed);
-                    } else {
-                        const double s = 2 * M_PI / period;
-                        v = 0.5 + 0.5 * (std::sin(x * s) * std::cos(y * s) + std::sin(y * s) * std::cos(z * s) +
-                                         std::sin(z * s) * std::cos(x * s)) / 1.5;
-                    }
-                    if (v != 0.0) acc.setValue(openvdb::Coord(x, y, z), float(v));
-                }
-        openvdb::tools::prune(g->tree());
-        out = g;
+        const double s = 2 * M_PI / period;
+        out = vdb_isosimp::volumes::fog(size, voxel, [&](int x, int y, int z) {
+            return 0.5 + 0.5 * (std::sin(x * s) * std::cos(y * s) + std::sin(y * s) * std::cos(z * s) +
+                                std::sin(z * s) * std::cos(x * s)) / 1.5;
+        });
     }
     if (out->getName().empty()) out->setName(kind);
     openvdb::io::File file(output);

@@ -3,6 +3,7 @@
 #include <openvdb/tools/Composite.h>
 #include <openvdb/tools/LevelSetPlatonic.h>
 #include <openvdb/tools/MeshToVolume.h>
+#include <openvdb/tools/Prune.h>
 
 #include <algorithm>
 #include <cmath>
@@ -100,6 +101,25 @@ double fractalNoise(int x, int y, int z, int size, uint64_t seed)
     for (int o = 0; o < 4; ++o, amp *= 0.5, f *= 2) v += amp * valueNoise(x * f, y * f, z * f, seed + uint64_t(o));
     const double edge = std::min({x, y, z, size - 1 - x, size - 1 - y, size - 1 - z}) / 10.0;
     return std::max(0.0, (v - 0.3) * std::min(1.0, edge));
+}
+
+openvdb::FloatGrid::Ptr fog(int size, double voxel, const std::function<double(int, int, int)>& value)
+{
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
+    auto acc = g->getAccessor();
+    for (int z = 0; z < size; ++z)
+        for (int y = 0; y < size; ++y)
+            for (int x = 0; x < size; ++x)
+                if (const double v = value(x, y, z); v != 0.0) acc.setValue(openvdb::Coord(x, y, z), float(v));
+    openvdb::tools::prune(g->tree());
+    return g;
+}
+
+openvdb::FloatGrid::Ptr noiseFog(int size, uint64_t seed, double voxel)
+{
+    return fog(size, voxel, [&](int x, int y, int z) { return fractalNoise(x, y, z, size, seed); });
 }
 
 const std::vector<std::string>& volumeNames()

@@ -6,6 +6,7 @@
 #include <openvdb/openvdb.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -34,5 +35,12 @@ TestVolume makeVolume(const std::string& name, int size, bool rotated = false);
 // CT-like fractal value noise at voxel (x, y, z) of a size^3 volume: 4 octaves from a 12-voxel period,
 // minus 0.3, faded to exactly 0 within 10 voxels of the border so constant regions become tiles.
 double fractalNoise(int x, int y, int z, int size, uint64_t seed);
+
+// A fog of `value(x, y, z)` on a size^3 grid of `voxel` world units: zero voxels left inactive, constant
+// regions pruned to tiles.
+openvdb::FloatGrid::Ptr fog(int size, double voxel, const std::function<double(int, int, int)>& value);
+
+// The fog of make_volume's `noise`: fractalNoise (iso-value 0.3 in the noise's own units: many components).
+openvdb::FloatGrid::Ptr noiseFog(int size, uint64_t seed, double voxel = 1.0);
 
 } // namespace vdb_isosimp::volumes

@@ -8,8 +8,6 @@
 #include "test_volumes.h"
 #include "vdb_isosimp/vdb_isosimp.h"
 
-#include <openvdb/tools/Prune.h>
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -138,15 +136,7 @@ TEST(RetiredInterior, HardContentStaysExactCleanAndThreadIndependent)
 // of 1,592, where the same run without retiring reaches it.)
 TEST(RetiredInterior, ComponentsStillGoWhereTheTargetNeedsIt)
 {
-    constexpr int n = 128;
-    auto grid = openvdb::FloatGrid::create(0.0f);
-    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
-    auto acc = grid->getAccessor();
-    for (int z = 0; z < n; ++z)
-        for (int y = 0; y < n; ++y)
-            for (int x = 0; x < n; ++x)
-                if (const double v = volumes::fractalNoise(x, y, z, n, 1); v != 0.0) acc.setValue({x, y, z}, float(v));
-    openvdb::tools::prune(grid->tree());
+    const openvdb::FloatGrid::Ptr grid = volumes::noiseFog(128, 1);
     for (double r : {0.01, 0.005}) {
         const std::string what = "noise 128^3 R=" + std::to_string(r);
         Options o;
