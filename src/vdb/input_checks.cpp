@@ -762,11 +762,15 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (split) sound = share->allSound(sound, digest);
     if (sound) {
         in.seek(e.endPos);
+        layout.recordStarts = at;
     } else {
+        layout.recordStarts.resize(leaves + 1);
         for (size_t i = 0; i < leaves; ++i) {
+            layout.recordStarts[i] = in.pos();
             const std::string why = walkLeaf(in, i, layout, compression, half, valueSize, delayed);
             if (!why.empty()) throw damagedLeaf(path, name, layout.leafOrigins[i], why);
         }
+        layout.recordStarts[leaves] = in.pos();
     }
     if (locate) e.endPos = in.pos();
     if (in.pos() != e.endPos)
@@ -873,6 +877,9 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
     walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
+    layout.fileVersion = f.version;
+    layout.compression = compression;
+    layout.half = half;
     layout.checked = true;
     return layout;
 }

@@ -56,6 +56,12 @@ struct VdbGridLayout {
     // A hash of the leaves' origins, active counts and record positions: two copies of one stored tree
     // have the same digest (the processes of a distributed run compare them: Volume::open).
     uint64_t digest = 0;
+    // Where each leaf's record (its value mask, then its values) starts, in file order, and last where
+    // the records end; and how the values are stored. The voxel reads decode the records from there
+    // (volume_reader.cpp). Empty where the walk did not learn them.
+    std::vector<uint64_t> recordStarts;
+    uint32_t fileVersion = 0, compression = 0;
+    bool half = false;
     // Where the processes of a distributed run shared the walk (LeafWalkShare): the records of the
     // leaves this process did not walk, for KeptRecordsWalk once it knows which leaves it reads.
     std::shared_ptr<const LeafRecords> unwalked;

@@ -6,7 +6,9 @@
 #include "vdb_isosimp/errors.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/Compression.h>
 #include <openvdb/io/File.h>
+#include <openvdb/io/io.h>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -27,9 +29,102 @@
 #include <stdexcept>
 #include <tuple>
 
+#include <fcntl.h>
 #include <malloc.h>
+#include <unistd.h>
 
 namespace vdb_isosimp {
+
+// The leaves' records as the walk of the stored tree found them (input_checks.h), by origin. A leaf's
+// voxels are read with one pread() of its record and decoded by OpenVDB's readCompressedValues, as its
+// delayed load would (LeafBuffer::doLoad), without the mapping of the file that the delayed load reads
+// through: there each leaf faults its pages and 64 KB around them into this process, which has to
+// drop them again (trimInputMapping) and fault them back for the next leaf of the same pages, as
+// leaves lie in the file in tree order, not in sweep order. A read copies from the page cache and
+// maps nothing.
+class StoredLeaves {
+public:
+    // `origins` in file order (the tree's), one per record of `layout`. Empty (found() is always
+    // null) where a record cannot be told by its origin this way.
+    StoredLeaves(const std::string& path, const VdbGridLayout& layout, const std::vector<std::array<int32_t, 3>>& origins)
+        : mFd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)), mFileVersion(layout.fileVersion),
+          mCompression(layout.compression), mHalf(layout.half)
+    {
+        const auto& at = layout.recordStarts;
+        if (mFd < 0 || at.size() != origins.size() + 1 || mFileVersion < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
+            return;
+        mRecords.reserve(origins.size());
+        for (size_t i = 0; i < origins.size(); ++i) {
+            const auto& o = origins[i];
+            if (at[i + 1] <= at[i] || at[i + 1] - at[i] > kSizeMask || at[i] >> (64 - kSizeBits)) {
+                mRecords.clear();
+                return;
+            }
+            mRecords.push_back({makeEdgeKey(o[0], o[1], o[2], 0), at[i] << kSizeBits | (at[i + 1] - at[i])});
+        }
+        std::sort(mRecords.begin(), mRecords.end(), [](const Record& a, const Record& b) { return a.key < b.key; });
+    }
+    ~StoredLeaves()
+    {
+        if (mFd >= 0) ::close(mFd);
+    }
+    StoredLeaves(const StoredLeaves&) = delete;
+    StoredLeaves& operator=(const StoredLeaves&) = delete;
+
+    bool empty() const { return mRecords.empty(); }
+
+    // Reads the voxels of the leaf at `origin` into `values` (LeafT::SIZE of them); false where no
+    // record has that origin. @throw std::runtime_error (or OpenVDB's exceptions) when the record
+    // cannot be read or decoded.
+    template <typename ValueT>
+    bool read(const openvdb::Coord& origin, ValueT* values, const ValueT& background) const
+    {
+        const EdgeKey key = makeEdgeKey(origin.x(), origin.y(), origin.z(), 0);
+        const auto it = std::lower_bound(mRecords.begin(), mRecords.end(), key,
+                                         [](const Record& r, EdgeKey k) { return r.key < k; });
+        if (it == mRecords.end() || it->key != key) return false;
+        const uint64_t start = it->at >> kSizeBits;
+        const size_t size = size_t(it->at & kSizeMask);
+        thread_local RecordStream in;
+        in.bytes.resize(size);
+        for (size_t done = 0; done < size;) {
+            const ssize_t n = ::pread(mFd, in.bytes.data() + done, size - done, off_t(start + done));
+            if (n <= 0) throw std::runtime_error("its record cannot be read");
+            done += size_t(n);
+        }
+        in.buffer.over(in.bytes.data(), size);
+        in.stream.clear();
+        openvdb::io::setVersion(in.stream, openvdb::VersionId(openvdb::OPENVDB_LIBRARY_MAJOR_VERSION, openvdb::OPENVDB_LIBRARY_MINOR_VERSION), mFileVersion);
+        openvdb::io::setDataCompression(in.stream, mCompression);
+        openvdb::io::setGridBackgroundValuePtr(in.stream, &background);
+        openvdb::util::NodeMask<3> mask;
+        mask.load(in.stream);
+        openvdb::io::readCompressedValues(in.stream, values, openvdb::util::NodeMask<3>::SIZE, mask, mHalf);
+        if (!in.stream) throw std::runtime_error("its record ends early");
+        return true;
+    }
+
+private:
+    static constexpr unsigned kSizeBits = 20;  // a record's bytes: a leaf's at most ~4 KB
+    static constexpr uint64_t kSizeMask = (uint64_t(1) << kSizeBits) - 1;
+    struct Record {
+        EdgeKey key;  // the origin
+        uint64_t at;  // start << kSizeBits | size
+    };
+    // A stream over one record's bytes, a thread's own, reused.
+    struct RecordStream {
+        struct Buffer : std::streambuf {
+            void over(char* b, size_t n) { setg(b, b, b + n); }
+        };
+        std::vector<char> bytes;
+        Buffer buffer;
+        std::istream stream{&buffer};
+    };
+    int mFd;
+    uint32_t mFileVersion, mCompression;
+    bool mHalf;
+    std::vector<Record> mRecords;
+};
 
 namespace {
 
@@ -75,10 +170,17 @@ void parkBrokenBuffer(LeafT& leaf)
 // destroy (parkBrokenBuffer) and the error names the grid and the leaf. Callers serialise the first
 // load of each leaf: a second thread waiting on OpenVDB's own lock would load the broken buffer.
 template <typename LeafT>
-void loadLeaf(LeafT& leaf, const std::string& gridName)
+void loadLeaf(LeafT& leaf, const std::string& gridName, const StoredLeaves* stored, const typename LeafT::ValueType& background)
 {
     const char* what = nullptr;
     try {
+        if (stored) {
+            typename LeafT::Buffer read;
+            if (stored->read(leaf.origin(), read.data(), background)) {
+                leaf.swap(read);  // the on-disk buffer goes with `read`, unread
+                return;
+            }
+        }
         leaf.buffer().data();
         return;
     } catch (const std::bad_alloc&) {
@@ -159,7 +261,7 @@ public:
                 mUnreadCount.store(mUnread.size(), std::memory_order_relaxed);
             }
             try {
-                loadLeaf(*leaf, mInfo.gridName);
+                loadLeaf(*leaf, mInfo.gridName, mStored.get(), mGrid->background());
             } catch (const InputError& e) {
                 std::lock_guard<std::mutex> g(mDamageMutex);
                 if (!mDamaged.load()) mDamage = e.what();
@@ -412,7 +514,7 @@ public:
             tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
                 for (size_t i = br.begin(); i != br.end(); ++i) {
-                    if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName);
+                    if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName, mStored.get(), mGrid->background());
                     const auto* v = leaves[i]->buffer().data();
                     const auto mm = std::minmax_element(v, v + LeafT::SIZE);
                     acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
@@ -529,7 +631,7 @@ private:
             if (const uint32_t slot = mine.load(std::memory_order_acquire)) return values(slot - 1);  // loaded meanwhile
             // The copy's voxels go to the pool, and the copy with its array at once.
             LeafT copy(leaf);
-            loadLeaf(copy, mVolume.mInfo.gridName);
+            loadLeaf(copy, mVolume.mInfo.gridName, mVolume.mStored.get(), mVolume.mGrid->background());
             const uint32_t slot = takeSlot();
             std::copy_n(copy.buffer().data(), LeafT::SIZE, values(slot));
             mine.store(slot + 1, std::memory_order_release);
@@ -564,7 +666,7 @@ private:
                 },
                 [&](const LeafT& leaf) {
                     auto copy = std::make_unique<LeafT>(leaf);
-                    loadLeaf(*copy, mVolume.mInfo.gridName);
+                    loadLeaf(*copy, mVolume.mInfo.gridName, mVolume.mStored.get(), mVolume.mGrid->background());
                     mCopies.emplace_back(leaf.origin(), std::move(copy));
                     return mCopies.back().second->buffer().data();
                 });
@@ -677,7 +779,8 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
 
 void Volume::trimInputMapping() const
 {
-    if (!mHoldsMapping) return;
+    // Voxels read with pread() (StoredLeaves) fault nothing in after the topology, trimmed at the open.
+    if (!mHoldsMapping || mStored) return;
     // The mapping exists from the open on and stays put while this volume lives (the volume keeps it
     // alive, see layOutInSweepOrder): /proc/self/maps is read once.
     std::call_once(mMappedOnce, [this] {
@@ -814,6 +917,26 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     std::unique_ptr<Volume> volume = wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
     volume->mUnwalked = layout.unwalked;
+    if (layout.checked && !layout.recordStarts.empty()) {
+        // The tree lists its leaves in the file's order; where the walk kept their origins, they must
+        // agree (where it shared them out, keepLeaves checks the order before any read).
+        // Only where OpenVDB left voxels on disk (delayed loading may be switched off).
+        std::vector<std::array<int32_t, 3>> origins;
+        origins.reserve(layout.leafCount);
+        bool onDisk = false;
+        const auto collect = [&](const auto& tree) {
+            for (auto it = tree.cbeginLeaf(); it; ++it) {
+                origins.push_back({it->origin().x(), it->origin().y(), it->origin().z()});
+                onDisk = onDisk || it->buffer().isOutOfCore();
+            }
+        };
+        if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) collect(f->tree());
+        else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) collect(d->tree());
+        if (onDisk && (layout.leafOrigins.empty() || layout.leafOrigins == origins)) {
+            auto stored = std::make_shared<const StoredLeaves>(path, layout, origins);
+            if (!stored->empty()) volume->mStored = std::move(stored);
+        }
+    }
     return volume;
 }
 

@@ -20,6 +20,8 @@ namespace vdb_isosimp {
 
 // The stored records of a grid's leaves that this process has not walked yet (input_checks.h).
 struct LeafRecords;
+// Where the leaves' records lie in the file, by origin, for reading their voxels (volume_reader.cpp).
+class StoredLeaves;
 
 // The processes of a distributed run share the walk of the leaf records (input_checks.h: LeafWalkShare):
 // each walks part `part` of `parts` of them, then `agree` is called exactly once per open with
@@ -99,6 +101,9 @@ public:
     virtual void parkLeaf(const std::array<int32_t, 3>& blockOrigin) = 0;
     // How many leaves parkLeaf has parked so far.
     uint64_t parkedLeaves() const { return mParked.load(std::memory_order_relaxed); }
+    // True where the voxels are read from the leaves' records as the walk of the stored tree found them
+    // (every checked file with grid offsets), false where OpenVDB's delayed load reads them.
+    bool readsStoredRecords() const { return mStored != nullptr; }
 
     // A pass over the blocks before extraction (the face count of a face target) that leaves this
     // volume as opened: each leaf still on disk is read into a copy of its own, kept until release(),
@@ -138,6 +143,9 @@ protected:
     VolumeInfo mInfo;
     // The records another process walked (TreeAgreement): keepLeaves walks those of the kept leaves.
     std::shared_ptr<const LeafRecords> mUnwalked;
+    // Set where the walk of the stored tree found every leaf's record: a leaf's voxels are read from
+    // the file with pread() and decoded here, not through OpenVDB's mapping of the file.
+    std::shared_ptr<const StoredLeaves> mStored;
     bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
     std::atomic<uint64_t> mParked{0};
