@@ -77,7 +77,7 @@ FaceCount countFaces(const Volume& vol, const std::vector<BlockOrigin>& blocks, 
         const auto [first, last] = runBlocks(run.first);
         if (copies)
             for (size_t i = first; i < last; ++i) copies->release(blocks[i]);
-        vol.trimInputMapping();
+        if (!vol.readsStoredRecords()) vol.trimInputMapping();
         static_assert(kProgressEveryBlocks % kRun == 0, "the count reports after whole runs");
         constexpr size_t kReportEveryRuns = kProgressEveryBlocks / kRun;
         if (((run.first + 1) % kReportEveryRuns == 0 || run.first + 1 == runs) && !counted(double(run.first + 1) / double(runs)))

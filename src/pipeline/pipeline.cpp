@@ -620,7 +620,7 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
         mSweepAt = {};
         malloc_trim(0);
     } else {
-        if (mDone % Volume::kTrimEveryBlocks == 0) mVol->trimInputMapping();
+        if (mDone % Volume::kTrimEveryBlocks == 0 && !mVol->readsStoredRecords()) mVol->trimInputMapping();
         // Released leaves are small heap objects: give the pages they emptied back.
         if (mDone % kMallocTrimEveryBlocks == 0) malloc_trim(0);
     }

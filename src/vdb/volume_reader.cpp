@@ -779,8 +779,7 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
 
 void Volume::trimInputMapping() const
 {
-    // Voxels read with pread() (StoredLeaves) fault nothing in after the topology, trimmed at the open.
-    if (!mHoldsMapping || mStored) return;
+    if (!mHoldsMapping) return;
     // The mapping exists from the open on and stays put while this volume lives (the volume keeps it
     // alive, see layOutInSweepOrder): /proc/self/maps is read once.
     std::call_once(mMappedOnce, [this] {

@@ -132,8 +132,10 @@ public:
     // resident memory although the voxels they held were decoded long ago. Drops those pages from
     // this process (they stay in the page cache and fault back in if read again), so resident memory
     // follows the output rather than the input file. Safe while other threads read the file. Call it
-    // often (every few blocks): each leaf read faults in the pages around it too (fault-around,
-    // 64 KB), and leaves lie in the file in tree order, not in sweep order.
+    // often (every few blocks) where voxels are read through the mapping (!readsStoredRecords()): each
+    // leaf read faults in the pages around it too (fault-around, 64 KB), and leaves lie in the file in
+    // tree order, not in sweep order. Where they are read from their records, the open's call (after
+    // the topology) is the only one needed.
     void trimInputMapping() const;
     // Smallest and largest value stored in the grid (voxels, tiles and background); of the voxels, only
     // those of part `part` of `parts` of the leaves (a distributed run's ranks each read their part).
