@@ -60,9 +60,11 @@ public:
                 mRecords.clear();
                 return;
             }
-            mRecords.push_back({makeEdgeKey(o[0], o[1], o[2], 0), at[i] << kSizeBits | (at[i + 1] - at[i])});
+            mRecords.push_back({treeKey(o[0], o[1], o[2]), at[i] << kSizeBits | (at[i + 1] - at[i])});
         }
-        std::sort(mRecords.begin(), mRecords.end(), [](const Record& a, const Record& b) { return a.key < b.key; });
+        // In the file's order, which is the tree's, the keys already ascend.
+        const auto byKey = [](const Record& a, const Record& b) { return a.key < b.key; };
+        if (!std::is_sorted(mRecords.begin(), mRecords.end(), byKey)) std::sort(mRecords.begin(), mRecords.end(), byKey);
     }
     ~StoredLeaves()
     {
@@ -79,9 +81,9 @@ public:
     template <typename ValueT>
     bool read(const openvdb::Coord& origin, ValueT* values, const ValueT& background) const
     {
-        const EdgeKey key = makeEdgeKey(origin.x(), origin.y(), origin.z(), 0);
+        const uint64_t key = treeKey(origin.x(), origin.y(), origin.z());
         const auto it = std::lower_bound(mRecords.begin(), mRecords.end(), key,
-                                         [](const Record& r, EdgeKey k) { return r.key < k; });
+                                         [](const Record& r, uint64_t k) { return r.key < k; });
         if (it == mRecords.end() || it->key != key) return false;
         const uint64_t start = it->at >> kSizeBits;
         const size_t size = size_t(it->at & kSizeMask);
@@ -107,9 +109,20 @@ public:
 private:
     static constexpr unsigned kSizeBits = 20;  // a record's bytes: a leaf's at most ~4 KB
     static constexpr uint64_t kSizeMask = (uint64_t(1) << kSizeBits) - 1;
+    // A leaf's origin as a key that ascends in the order OpenVDB's 5-4-3 tree lists its leaves (the
+    // root's nodes by origin, x first; a node's children by offset, x slowest), so the records need no
+    // sort. Origins lie within the vertex keys' range (checked at the open): 8 bits per root
+    // coordinate, 5 per upper node, 4 per lower node.
+    static uint64_t treeKey(int32_t x, int32_t y, int32_t z)
+    {
+        const auto root = [](int32_t c) { return uint64_t((c >> 12) + 128) & 0xFF; };
+        const auto part = [](int32_t c, int shift, uint32_t mask) { return uint64_t((uint32_t(c) >> shift) & mask); };
+        return root(x) << 51 | root(y) << 43 | root(z) << 35 | part(x, 7, 31) << 30 | part(y, 7, 31) << 25 |
+               part(z, 7, 31) << 20 | part(x, 3, 15) << 16 | part(y, 3, 15) << 12 | part(z, 3, 15) << 8;
+    }
     struct Record {
-        EdgeKey key;  // the origin
-        uint64_t at;  // start << kSizeBits | size
+        uint64_t key;  // treeKey(origin)
+        uint64_t at;   // start << kSizeBits | size
     };
     // A stream over one record's bytes, a thread's own, reused.
     struct RecordStream {
