@@ -44,8 +44,8 @@ namespace vdb_isosimp {
 // maps nothing.
 class StoredLeaves {
 public:
-    // `origins` in file order (the tree's), one per record of `layout`. Empty (found() is always
-    // null) where a record cannot be told by its origin this way.
+    // `origins` in file order (the tree's), one per record of `layout`. Empty (read() finds no leaf)
+    // where the records cannot be kept this way.
     StoredLeaves(const std::string& path, const VdbGridLayout& layout, const std::vector<std::array<int32_t, 3>>& origins)
         : mFd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)), mFileVersion(layout.fileVersion),
           mCompression(layout.compression), mHalf(layout.half)
