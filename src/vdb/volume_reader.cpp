@@ -930,9 +930,9 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     std::unique_ptr<Volume> volume = wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
     volume->mUnwalked = layout.unwalked;
     if (layout.checked && !layout.recordStarts.empty()) {
-        // The tree lists its leaves in the file's order; where the walk kept their origins, they must
-        // agree (where it shared them out, keepLeaves checks the order before any read).
-        // Only where OpenVDB left voxels on disk (delayed loading may be switched off).
+        // Only where OpenVDB left voxels on disk (delayed loading may be switched off). The tree lists
+        // its leaves in the file's order; where the walk kept their origins, they must agree (where it
+        // shared them out, keepLeaves checks the order before any read).
         std::vector<std::array<int32_t, 3>> origins;
         origins.reserve(layout.leafCount);
         bool onDisk = false;
