@@ -61,9 +61,12 @@ public:
     // A deep copy: a LOD chain's coarser level starts from a copy of its slab's finer mesh.
     ChunkedVector(const ChunkedVector& o) : mSize(o.mSize)
     {
-        for (const auto& c : o.mChunks) {
-            mChunks.push_back(c ? std::make_unique<T[]>(kChunk) : nullptr);
-            if (c) std::copy(c.get(), c.get() + kChunk, mChunks.back().get());
+        for (size_t k = 0; k < o.mChunks.size(); ++k) {
+            const auto& c = o.mChunks[k];
+            mChunks.push_back(c ? newChunk() : nullptr);
+            // The last chunk's tail was never written.
+            const size_t used = mSize > k * kChunk ? std::min(kChunk, mSize - k * kChunk) : 0;
+            if (c) std::copy(c.get(), c.get() + used, mChunks.back().get());
         }
     }
     ChunkedVector& operator=(const ChunkedVector& o)
@@ -84,8 +87,7 @@ public:
     T& emplace_back(Spares* spares = nullptr)
     {
         if (mSize == mChunks.size() * kChunk) {
-            const auto fresh = [] { return std::make_unique<T[]>(kChunk); };
-            mChunks.push_back(spares ? spares->take(fresh) : fresh());
+            mChunks.push_back(spares ? spares->take(newChunk) : newChunk());
         }
         T& x = (*this)[mSize++];
         x = T{};
@@ -124,6 +126,10 @@ public:
     Iter<const T&, const ChunkedVector> end() const { return {this, mSize}; }
 
 private:
+    // Default-initialised: every element is written as it is appended (emplace_back), so zeroing the
+    // chunk first would be a second pass over memory the kernel has just zeroed (docs/perf.md).
+    static std::unique_ptr<T[]> newChunk() { return std::unique_ptr<T[]>(new T[kChunk]); }
+
     std::vector<std::unique_ptr<T[]>> mChunks;
     size_t mSize = 0;
 };
