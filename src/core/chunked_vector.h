@@ -127,7 +127,7 @@ public:
 
 private:
     // Default-initialised: every element is written as it is appended (emplace_back), so zeroing the
-    // chunk first would be a second pass over memory the kernel has just zeroed (docs/perf.md).
+    // chunk first would be a second pass over it (often over pages the kernel has just zeroed; docs/perf.md).
     static std::unique_ptr<T[]> newChunk() { return std::unique_ptr<T[]>(new T[kChunk]); }
 
     std::vector<std::unique_ptr<T[]>> mChunks;
