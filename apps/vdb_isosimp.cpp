@@ -517,7 +517,7 @@ int main(int argc, char** argv)
                    "Faces of a node of the merge tree from which its pass goes to the rate without deferral room;\n"
                    "where two such nodes join, the faces far from every seam are written out and leave the\n"
                    "decimator, so memory holds bands around the seams instead of the whole decimated surface.\n"
-                   "Smaller: less memory, a little less quality on large runs. 0: never (no effect with --lods)")
+                   "Smaller: less memory, a little less quality on large runs. 0: never. Every level of --lods retires")
         ->default_val(opt.retireAboveFaces)
         ->check(CLI::Range(uint64_t(0), uint64_t(1) << 40));
     app.add_option("--count-sample", opt.countSampleRuns,

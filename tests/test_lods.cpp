@@ -22,6 +22,13 @@ double rmsFromFull(const std::string& dir, const std::string& mesh)
     return jsonNumber(e.out, "rms", "a_to_b");
 }
 
+// A PLY file after its header (a chain's level names itself in a header comment).
+std::string meshBody(const std::string& dir, const std::string& name)
+{
+    const std::string bytes = slurp(dir + "/" + name);
+    return bytes.substr(bytes.find("end_header\n"));
+}
+
 TEST(Lods, OneRunWritesEveryLevel)
 {
     const ScratchDir scratch;
@@ -33,6 +40,8 @@ TEST(Lods, OneRunWritesEveryLevel)
     EXPECT_FALSE(exists(dir + "/chain.ply")) << "a chain writes its levels only";
 
     const std::string report = slurp(dir + "/chain.json");
+    // Large nodes near the top of the tree retire their interiors in every level, as in a run at one rate.
+    EXPECT_GT(jsonNumber(report, "faces_retired"), 0) << "no level retired a face";
     for (int level = 0; level < 3; ++level) {
         const std::string name = "chain_lod" + std::to_string(level) + ".ply", p = "lod" + std::to_string(level) + "_";
         const ToolRun stats = runTool(dir, q(MESH_STATS_EXE) + " --json " + name);
@@ -45,24 +54,17 @@ TEST(Lods, OneRunWritesEveryLevel)
         EXPECT_NEAR(faces, target, 0.02 * target) << name;
     }
 
-    // The finest level is the mesh of a run at its rate alone that keeps its interiors to the end, as a
-    // chain does (the header names the level); each coarser level is as close to the full surface as a
-    // run at its rate alone.
+    // The finest level is the mesh of a run at its rate alone, interiors retired near the top of the
+    // tree as that run retires them (the header names the level); each coarser level is as close to the
+    // full surface as a run at its rate alone.
     ASSERT_EQ(runTool(dir, exe + "-r 1 -o full.ply").code, 0);
-    const auto body = [&](const std::string& name) {
-        const std::string bytes = slurp(dir + "/" + name);
-        return bytes.substr(bytes.find("end_header\n"));
-    };
     const char* rates[] = {"0.2", "0.05", "0.01"};
     for (int level = 0; level < 3; ++level) {
         const std::string chain = "chain_lod" + std::to_string(level) + ".ply", alone = std::string("alone") + rates[level] + ".ply";
         ASSERT_EQ(runTool(dir, exe + "-r " + rates[level] + " -o " + alone).code, 0);
-        if (level == 0) {
-            ASSERT_EQ(runTool(dir, exe + "-r 0.2 --retire-above 0 -o whole0.2.ply").code, 0);
-        }
         const double chainRms = rmsFromFull(dir, chain), aloneRms = rmsFromFull(dir, alone);
         std::printf("RMS from the full surface: level %d %.6g, -r %s alone %.6g\n", level, chainRms, rates[level], aloneRms);
-        if (level == 0) EXPECT_TRUE(body(chain) == body("whole0.2.ply")) << "level 0 differs from a run at its rate";
+        if (level == 0) EXPECT_TRUE(meshBody(dir, chain) == meshBody(dir, alone)) << "level 0 differs from a run at its rate";
         else EXPECT_LE(chainRms, 1.05 * aloneRms) << chain;
     }
 
@@ -76,17 +78,19 @@ TEST(Lods, OneRunWritesEveryLevel)
 TEST(Lods, HardContentLevelsAreExactAndClosed)
 {
     // Flat faces and sharp edges (csg), voxels exactly at the iso-value (ct-int), small slabs so that
-    // every level's copies and joins are many: each level closed, manifold, without zero-area faces,
-    // at its target, and as close to the full surface as a run at its rate alone.
+    // every level's copies and joins are many, and small nodes retiring their interiors: each level
+    // closed, manifold, without zero-area faces, at its target, and as close to the full surface as a
+    // run at its rate alone; the finest level is that run's mesh.
     const ScratchDir scratch;
     const std::string dir = scratch.path;
     for (const std::string kind : {"csg", "ct-int"}) {
         ASSERT_EQ(runTool(dir, q(MAKE_VOLUME_EXE) + " " + kind + " -n 96 -o v.vdb").code, 0) << kind;
-        const std::string exe = q(VDB_ISOSIMP_EXE) + " v.vdb -q --slab-blocks 64 ";
+        const std::string exe = q(VDB_ISOSIMP_EXE) + " v.vdb -q --slab-blocks 64 --retire-above 2000 ";
         ASSERT_EQ(runTool(dir, exe + "-r 1 -o full.ply").code, 0) << kind;
         const ToolRun lods = runTool(dir, exe + "--lods 0.2,0.05,0.01 -o chain.ply --report chain.json");
         ASSERT_EQ(lods.code, 0) << kind << ": " << lods.err;
         const std::string report = slurp(dir + "/chain.json");
+        EXPECT_GT(jsonNumber(report, "faces_retired"), 0) << kind << ": no level retired a face";
         const char* rates[] = {"0.2", "0.05", "0.01"};
         for (int level = 0; level < 3; ++level) {
             const std::string name = "chain_lod" + std::to_string(level) + ".ply", p = "lod" + std::to_string(level) + "_";
@@ -102,6 +106,9 @@ TEST(Lods, HardContentLevelsAreExactAndClosed)
             std::printf("%s level %d: %.0f faces (target %.0f), RMS %.6g, -r %s alone %.6g\n", kind.c_str(), level, faces,
                         target, chainRms, rates[level], aloneRms);
             EXPECT_LE(chainRms, 1.05 * aloneRms + 1e-9) << kind << " " << name;
+            if (level == 0) {
+                EXPECT_TRUE(meshBody(dir, name) == meshBody(dir, "alone.ply")) << kind << ": level 0 differs from -r 0.2";
+            }
         }
     }
 }

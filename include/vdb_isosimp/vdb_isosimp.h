@@ -72,8 +72,8 @@ struct Options {
     // from every seam are written to the output part of the mesh (12 bytes a face and 12 a point) and
     // leave the decimator (~120 bytes a face), so the run holds bands around the seams instead of the
     // whole decimated surface. Changes the output where it applies; 0: never (each node keeps its room
-    // and its interior up to the final pass). Not with a LOD chain (lods), whose coarser levels
-    // continue from the finer ones. Default 50000.
+    // and its interior up to the final pass). A LOD chain's levels retire like a single-rate run: they
+    // part at the slabs, before any join. Default 50000.
     uint64_t retireAboveFaces = 50000;
     // If > 0: after the final decimation, closed components whose area is below this many world
     // units squared are removed (floaters); Report::componentsPruned counts them. Default 0 (none).
@@ -87,10 +87,10 @@ struct Options {
     // 0 (default): no bound.
     double maxError = 0.0;
     // LOD chain: decreasing rates in (0, 1], e.g. {0.2, 0.05, 0.01}. Non-empty: one run makes every
-    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0] with
-    // retireAboveFaces 0), each slab continues from a copy of one level to the next rate, every level
-    // is joined and finished like a single-rate run and handed to onLevel as soon as it is made (so a
-    // caller can write it and let it go), finest first; the Result holds the last level and
+    // level: extraction decimates at lods[0] (level 0 is the mesh of a run at ratio lods[0]), each
+    // slab continues from a copy of one level to the next rate, every level is joined and finished
+    // like a single-rate run and handed to onLevel as soon as it is made (so a caller can write it and
+    // let it go), finest first; the Result holds the last level and
     // Report::levels one entry per level. ratio is ignored; targetFaces must be 0.
     std::vector<double> lods;
     std::function<void(const LevelOfDetail&)> onLevel;

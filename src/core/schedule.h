@@ -56,7 +56,7 @@ class Integrator {
 public:
     Integrator(const Options& o, double ratio, uint64_t batch, uint32_t slab)
         : mOpt(o), mRatio(ratio), mBatch(batch), mDefer(batch / 2), mSlab(slab),
-          mRetireAbove(o.lods.empty() ? o.retireAboveFaces : 0)
+          mRetireAbove(o.retireAboveFaces)
     {
         // With an error bound the bound keeps early batches from losing detail; the initial phase,
         // which decimates whenever the mesh exceeds B, would run at every block once the bound holds
