@@ -5,9 +5,12 @@
 // decimator of the merge tree (a slab, a node waiting for its sibling) holds a part-filled last chunk
 // of each array, and 16384 vertices' geometry alone is 1.7 MB.
 #pragma once
+#include "core/chunk_pool.h"
+
 #include <algorithm>
 #include <cstddef>
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 namespace vdb_isosimp {
@@ -52,8 +55,16 @@ private:
 
 template <typename T, unsigned Shift = 12>
 class ChunkedVector {
+    static_assert(std::is_trivially_destructible<T>::value, "a chunk's elements are never destroyed one by one");
+    static constexpr size_t kAlign = alignof(T) > __STDCPP_DEFAULT_NEW_ALIGNMENT__ ? alignof(T) : __STDCPP_DEFAULT_NEW_ALIGNMENT__;
+
 public:
     static constexpr size_t kChunk = size_t(1) << Shift;
+    // A chunk's memory goes back to the ChunkPool.
+    struct Free {
+        void operator()(T* p) const { ChunkPool::free(p, kChunk * sizeof(T), kAlign); }
+    };
+    using Chunk = std::unique_ptr<T[], Free>;
 
     ChunkedVector() = default;
     ChunkedVector(ChunkedVector&&) noexcept = default;
@@ -81,7 +92,7 @@ public:
     const T& operator[](size_t i) const { return mChunks[i >> Shift][i & (kChunk - 1)]; }
 
     // Chunks releaseThrough lets go of, for another array's emplace_back.
-    using Spares = SpareChunks<std::unique_ptr<T[]>>;
+    using Spares = SpareChunks<Chunk>;
 
     // Appends a value-initialised element (in a spare chunk, if it needs a chunk and one waits).
     T& emplace_back(Spares* spares = nullptr)
@@ -128,9 +139,14 @@ public:
 private:
     // Default-initialised: every element is written as it is appended (emplace_back), so zeroing the
     // chunk first would be a second pass over it (often over pages the kernel has just zeroed; docs/perf.md).
-    static std::unique_ptr<T[]> newChunk() { return std::unique_ptr<T[]>(new T[kChunk]); }
+    static Chunk newChunk()
+    {
+        T* p = static_cast<T*>(ChunkPool::allocate(kChunk * sizeof(T), kAlign));
+        std::uninitialized_default_construct_n(p, kChunk);
+        return Chunk(p);
+    }
 
-    std::vector<std::unique_ptr<T[]>> mChunks;
+    std::vector<Chunk> mChunks;
     size_t mSize = 0;
 };
 

@@ -1,5 +1,6 @@
 #include "core/decimator.h"
 
+#include "core/chunk_pool.h"
 #include "core/stopwatch.h"
 #include "vdb_isosimp/errors.h"
 
@@ -1751,6 +1752,9 @@ Mesh Decimator::takeMesh()
     mFreeFaces = {};
     mDrift = {};
     mAttrQ = {};
+    // The output's arrays, which are not chunks, come next, at the run's peak: no freed chunk waits for
+    // reuse meanwhile.
+    ChunkPool::release();
     const Stopwatch collection;
     // Exactly the output's size (a vector grown past its capacity holds both copies while it moves),
     // the retired part first, freed as it is copied. Its chunks go back to the heap, not to the system,

@@ -17,8 +17,8 @@ namespace vdb_isosimp {
 // be appended in bulk without order (append()); the heap is built once, on the next push or pop.
 // Stored in chunks aligned to cache lines, like the decimator's vertex and face arrays: growing never
 // copies, so a merge that appends a child's queue to its sibling's never holds the old and the new
-// array at once. A chunk is 256 KiB, above glibc's mmap threshold, so a freed chunk goes back to the
-// system at once instead of staying in the heap.
+// array at once. A chunk is 256 KiB: freed, it waits in the ChunkPool for another heap's next chunk or
+// goes back to the system, as its own mapping, at once.
 template <typename T>
 class QuadHeap {
     static_assert(sizeof(T) == 16, "four entries must fill one 64-byte line");
@@ -28,10 +28,10 @@ class QuadHeap {
     static constexpr size_t kPad = 3;
     static constexpr std::align_val_t kAlign{64};
     struct Free {
-        void operator()(T* p) const { ::operator delete(p, kAlign); }
+        void operator()(T* p) const { ChunkPool::free(p, kChunk * sizeof(T), size_t(kAlign)); }
     };
     using Chunk = std::unique_ptr<T[], Free>;
-    static Chunk newChunk() { return Chunk(static_cast<T*>(::operator new(kChunk * sizeof(T), kAlign))); }
+    static Chunk newChunk() { return Chunk(static_cast<T*>(ChunkPool::allocate(kChunk * sizeof(T), size_t(kAlign)))); }
 
 public:
     QuadHeap() = default;
