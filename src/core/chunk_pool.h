@@ -2,9 +2,9 @@
 // within the process instead of going back to the system at once. A chunk of a few hundred KiB is
 // mapped on its own by glibc, and every page of a fresh mapping is faulted in and zeroed by the kernel
 // on first touch: the merge tree lets go of one node's chunks while it fills another's, and a LOD
-// chain's copies and passes do so all run long (a fault costs about 9 µs of system time on these
-// machines; docs/perf.md). Up to kMaxCachedBytes of freed chunks wait for the next chunk of the same
-// size; beyond that a chunk is freed as before, so the pool adds at most that much to the peak.
+// chain's copies and passes do so all run long (docs/perf.md). Up to kMaxCachedBytes of freed chunks
+// wait for the next chunk of the same size; beyond that a chunk is freed as before, so the pool adds at
+// most that much to the peak.
 // Smaller chunks come from glibc's heap, which reuses them itself. Thread-safe.
 #pragma once
 #include <cstddef>
@@ -14,7 +14,7 @@ namespace vdb_isosimp {
 class ChunkPool {
 public:
     static constexpr size_t kMinBytes = size_t(128) << 10;      // glibc's mmap threshold as we set it
-    static constexpr size_t kMaxCachedBytes = size_t(32) << 20;  // docs/perf.md: 16, 32, 64 MiB measured
+    static constexpr size_t kMaxCachedBytes = size_t(32) << 20;  // the caps measured: docs/perf.md
 
     // `bytes` aligned to `align` (both the same at free()).
     static void* allocate(size_t bytes, size_t align);
