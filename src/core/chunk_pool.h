@@ -13,7 +13,7 @@ namespace vdb_isosimp {
 
 class ChunkPool {
 public:
-    static constexpr size_t kMinBytes = size_t(128) << 10;      // glibc's mmap threshold as we set it
+    static constexpr size_t kMinBytes = size_t(128) << 10;      // glibc's default mmap threshold
     static constexpr size_t kMaxCachedBytes = size_t(32) << 20;  // the caps measured: docs/perf.md
 
     // `bytes` aligned to `align` (both the same at free()).
