@@ -14,6 +14,8 @@ struct Waiting {
 };
 
 struct Pool {
+    // Room for as many chunks as the cap can hold, so that listing a freed chunk never allocates.
+    Pool() { chunks.reserve(ChunkPool::kMaxCachedBytes / ChunkPool::kMinBytes); }
     std::mutex mutex;
     std::vector<Waiting> chunks;  // a handful of sizes: a linear search finds one
     size_t bytes = 0;
@@ -51,13 +53,9 @@ void ChunkPool::free(void* chunk, size_t bytes, size_t align) noexcept
         Pool& p = pool();
         std::lock_guard<std::mutex> lock(p.mutex);
         if (p.bytes + bytes <= kMaxCachedBytes) {
-            try {
-                p.chunks.push_back({chunk, bytes, align});
-                p.bytes += bytes;
-                return;
-            } catch (const std::bad_alloc&) {
-                // No room to list it: freed below.
-            }
+            p.chunks.push_back({chunk, bytes, align});
+            p.bytes += bytes;
+            return;
         }
     }
     ::operator delete(chunk, std::align_val_t(align));
@@ -72,14 +70,11 @@ size_t ChunkPool::cachedBytes()
 
 void ChunkPool::release()
 {
-    std::vector<Waiting> chunks;
-    {
-        Pool& p = pool();
-        std::lock_guard<std::mutex> lock(p.mutex);
-        chunks.swap(p.chunks);
-        p.bytes = 0;
-    }
-    for (const Waiting& w : chunks) ::operator delete(w.p, std::align_val_t(w.align));
+    Pool& p = pool();
+    std::lock_guard<std::mutex> lock(p.mutex);
+    for (const Waiting& w : p.chunks) ::operator delete(w.p, std::align_val_t(w.align));
+    p.chunks.clear();  // keeps its room
+    p.bytes = 0;
 }
 
 } // namespace vdb_isosimp
