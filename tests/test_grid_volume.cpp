@@ -119,8 +119,8 @@ TEST(GridVolume, RejectsWhatTheFileReaderRejects)
 
 TEST(FileVolume, ReadsEveryStoredFormatAsOpenVDBLoadsIt)
 {
-    // The voxels come from each leaf's record, read with pread() and decoded here (StoredLeaves), not
-    // from OpenVDB's delayed load: every block's samples equal those of the grid OpenVDB reads whole,
+    // OpenVDB reads the topology alone and the voxels come from each leaf's record, read with pread()
+    // and decoded here (StoredLeaves): every block's samples equal those of the grid OpenVDB reads whole,
     // for every way it stores a scalar grid (blosc, zip, none, active-mask compression, half floats,
     // double, level sets with their negative inactive values, several grids in one file, files written
     // as a stream).
@@ -140,6 +140,9 @@ TEST(FileVolume, ReadsEveryStoredFormatAsOpenVDBLoadsIt)
             const auto fromFile = vi::Volume::open(path, grid->getName());
             const auto inMemory = vi::Volume::fromGrid(grid, "grid read whole");
             EXPECT_TRUE(fromFile->readsStoredRecords());
+            // The value range a fog grid's default iso-value comes from: read leaf by leaf from the
+            // records, against the grid read whole.
+            EXPECT_EQ(fromFile->valueRange(), inMemory->valueRange());
             vi::Classifier c;
             c.insideBelow = fromFile->info().levelSet;
             c.iso = c.insideBelow ? 0.0 : 0.5;

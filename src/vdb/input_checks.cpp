@@ -877,6 +877,7 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
     walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
+    layout.gridPos = e->parent.empty() && !e->streamed ? e->gridPos : 0;
     layout.fileVersion = f.version;
     layout.compression = compression;
     layout.half = half;

@@ -6,6 +6,7 @@
 #include "vdb_isosimp/errors.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/Archive.h>
 #include <openvdb/io/Compression.h>
 #include <openvdb/io/File.h>
 #include <openvdb/io/io.h>
@@ -25,6 +26,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
@@ -194,6 +196,8 @@ void loadLeaf(LeafT& leaf, const std::string& gridName, const StoredLeaves* stor
                 return;
             }
         }
+        // Without a delayed-load record (a topology read alone) the stored record is the only source.
+        if (!leaf.buffer().isOutOfCore()) throw std::runtime_error("no stored record");
         leaf.buffer().data();
         return;
     } catch (const std::bad_alloc&) {
@@ -258,14 +262,14 @@ public:
         for (int d = 0; d < 8; ++d) {
             const BlockOrigin l = sampledLeaf(origin, d);
             LeafT* leaf = mGrid->tree().probeLeaf(openvdb::Coord(l[0], l[1], l[2]));
-            if (!leaf || !leaf->buffer().isOutOfCore()) {
+            if (!leaf || !leaf->buffer().empty()) {
                 if (mDamaged.load(std::memory_order_acquire)) throwDamaged();
                 continue;
             }
             const openvdb::Coord o = leaf->origin();
             const uint32_t stripe = uint32_t(o.x()) * 73856093u ^ uint32_t(o.y()) * 19349663u ^ uint32_t(o.z()) * 83492791u;
             std::lock_guard<std::mutex> lock(mLoadMutex[stripe % kLoadStripes]);
-            if (!leaf->buffer().isOutOfCore()) continue;
+            if (!leaf->buffer().empty()) continue;
             if ((reloadable >> d) & 1) {
                 // A copy made while the voxels are still on disk keeps their place in the file.
                 auto unread = std::make_unique<LeafT>(*leaf);
@@ -314,7 +318,7 @@ public:
         sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
             const LeafT* leaf = mGrid->tree().probeConstLeaf(at);
             if (!leaf) return nullptr;
-            if (!leaf->buffer().isOutOfCore()) return leaf->buffer().data();
+            if (!leaf->buffer().empty()) return leaf->buffer().data();
             if (const ValueT* v = copied(*leaf)) return v;
             return read(*leaf);
         });
@@ -486,11 +490,12 @@ public:
 
     std::array<double, 2> valueRange(size_t part, size_t parts) const override
     {
-        // Scanning the grid itself would load every voxel buffer at once and keep it: read a second,
-        // delayed-loading copy instead and free each leaf right after reading it, so the scan costs a
-        // second decompression pass but only one leaf of memory at a time.
+        // Loading the grid's own leaves would keep every voxel buffer at once: each leaf still on disk
+        // is read into a copy of its node instead (from its record), or, where voxels are read through
+        // OpenVDB's delayed loading, from a second delayed-loading copy of the grid whose leaves are
+        // freed right after they are read. Either way the scan holds one leaf of memory at a time.
         typename GridT::Ptr copy = mGrid;
-        if (mFromFile) try {
+        if (mFromFile && !mStored) try {
             openvdb::io::File f(mInfo.file);
             f.setCopyMaxBytes(0);
             f.open(/*delayLoad=*/true);
@@ -527,8 +532,14 @@ public:
             tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
                 for (size_t i = br.begin(); i != br.end(); ++i) {
-                    if (leaves[i]->buffer().isOutOfCore()) loadLeaf(*leaves[i], mInfo.gridName, mStored.get(), mGrid->background());
-                    const auto* v = leaves[i]->buffer().data();
+                    std::optional<LeafT> read;  // the grid's own leaf stays on disk
+                    if (!release && leaves[i]->buffer().empty()) {
+                        read.emplace(*leaves[i]);
+                        loadLeaf(*read, mInfo.gridName, mStored.get(), mGrid->background());
+                    } else if (leaves[i]->buffer().empty()) {
+                        loadLeaf(*leaves[i], mInfo.gridName, mStored.get(), mGrid->background());
+                    }
+                    const auto* v = read ? read->buffer().data() : leaves[i]->buffer().data();
                     const auto mm = std::minmax_element(v, v + LeafT::SIZE);
                     acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
                     if (release) {
@@ -600,7 +611,7 @@ private:
         {
             if (!mSlotOf) return;
             const LeafT* leaf = mVolume.mGrid->tree().probeConstLeaf(openvdb::Coord(o[0], o[1], o[2]));
-            if (!leaf || !leaf->buffer().isOutOfCore()) return;
+            if (!leaf || !leaf->buffer().empty()) return;
             uint32_t slot;
             {
                 std::lock_guard<std::mutex> lock(stripe(leaf->origin()));
@@ -724,6 +735,41 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
         i = j;
     }
 }
+
+// Reads a grid's metadata, transform and topology from its record at `gridPos`, as io::Archive::readGrid
+// does, but not its leaves' delayed-load records: OpenVDB 10 offers no read of the topology alone, and
+// those records (an allocation and a reference to the file's mapping per leaf, a fifth of the gyroid's
+// open and about 130 MB of its peak) serve only delayed loading, while this reader reads each leaf's
+// voxels from the record the walk of the stored tree found (StoredLeaves). The leaves come without
+// voxel buffers (empty() until read).
+class GridRecordReader : public openvdb::io::Archive {
+public:
+    static openvdb::GridBase::Ptr readTopology(const std::string& path, const openvdb::io::File& file,
+                                               const openvdb::GridBase& meta, uint64_t gridPos)
+    {
+        std::ifstream is(path, std::ios::binary);
+        is.seekg(std::streamoff(gridPos));
+        if (!is) throw std::runtime_error("cannot seek to the grid");
+        auto streamMeta = std::make_shared<openvdb::io::StreamMetadata>();
+        openvdb::io::setStreamMetadataPtr(is, streamMeta, /*transfer=*/false);
+        openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
+        openvdb::io::setDataCompression(is, file.compression());
+        readGridCompression(is);
+        openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(meta.type());
+        grid->setSaveFloatAsHalf(meta.saveFloatAsHalf());
+        streamMeta->setHalfFloat(grid->saveFloatAsHalf());
+        openvdb::io::setGridClass(is, openvdb::GRID_UNKNOWN);
+        openvdb::io::setGridBackgroundValuePtr(is, nullptr);
+        grid->readMeta(is);
+        grid->removeMeta(openvdb::GridBase::META_FILE_DELAYED_LOAD);  // sizes for the records' reads only
+        streamMeta->gridMetadata() = static_cast<openvdb::MetaMap&>(*grid);
+        openvdb::io::setGridClass(is, grid->getGridClass());
+        grid->readTransform(is);
+        grid->readTopology(is);
+        if (!is) throw std::runtime_error("its topology ends early");
+        return grid;
+    }
+};
 
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
@@ -908,9 +954,14 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     agreeOnce.agree(false, false, 0);  // a tree this walk does not cover has no say
     const double checkSeconds = check.seconds();
 
+    // Where the walk found every leaf's record, the voxels are read from there and OpenVDB reads the
+    // topology alone.
+    const bool fromRecords = layout.checked && layout.gridPos != 0 && !layout.recordStarts.empty() &&
+                             layout.fileVersion >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION &&
+                             openvdb::io::Archive::isDelayedLoadingEnabled();
     openvdb::GridBase::Ptr grid;
     try {
-        grid = file.readGrid(meta->getName());
+        grid = fromRecords ? GridRecordReader::readTopology(path, file, *meta, layout.gridPos) : file.readGrid(meta->getName());
     } catch (const std::bad_alloc&) {
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (out of memory reading its topology)");
     } catch (const std::exception& e) {
@@ -939,7 +990,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         const auto collect = [&](const auto& tree) {
             for (auto it = tree.cbeginLeaf(); it; ++it) {
                 origins.push_back({it->origin().x(), it->origin().y(), it->origin().z()});
-                onDisk = onDisk || it->buffer().isOutOfCore();
+                onDisk = onDisk || it->buffer().empty();
             }
         };
         if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) collect(f->tree());
@@ -949,6 +1000,9 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
             if (!stored->empty()) volume->mStored = std::move(stored);
         }
     }
+    if (fromRecords && layout.leafCount > 0 && !volume->mStored)  // a topology read alone has no other source of voxels
+        throw InputError(path + ": truncated or damaged OpenVDB file (grid '" + meta->getName() +
+                         "': its leaves are not the stored ones)");
     return volume;
 }
 
