@@ -875,9 +875,10 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     uint32_t compression = 0;
     DelayedLoadSizes delayed;
     if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
+    const uint64_t topologyPos = in.pos();
     walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
-    layout.gridPos = e->parent.empty() && !e->streamed ? e->gridPos : 0;
+    layout.topologyPos = e->parent.empty() && !e->streamed ? topologyPos : 0;
     layout.fileVersion = f.version;
     layout.compression = compression;
     layout.half = half;

@@ -60,9 +60,9 @@ struct VdbGridLayout {
     // the records end; and how the values are stored. The voxel reads decode the records from there
     // (volume_reader.cpp). Empty where the walk did not learn them.
     std::vector<uint64_t> recordStarts;
-    // Where the grid's own record starts in the file (its compression flags, metadata, transform and
-    // topology, as io::Archive reads them); 0 for an instance, whose tree is its parent's.
-    uint64_t gridPos = 0;
+    // Where the grid's topology starts in the file, after its compression flags, metadata and
+    // transform; 0 for an instance (its tree is its parent's) and for a file written as a stream.
+    uint64_t topologyPos = 0;
     uint32_t fileVersion = 0, compression = 0;
     bool half = false;
     // Where the processes of a distributed run shared the walk (LeafWalkShare): the records of the

@@ -6,7 +6,6 @@
 #include "vdb_isosimp/errors.h"
 
 #include <openvdb/openvdb.h>
-#include <openvdb/io/Archive.h>
 #include <openvdb/io/Compression.h>
 #include <openvdb/io/File.h>
 #include <openvdb/io/io.h>
@@ -736,40 +735,34 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
     }
 }
 
-// Reads a grid's metadata, transform and topology from its record at `gridPos`, as io::Archive::readGrid
-// does, but not its leaves' delayed-load records: OpenVDB 10 offers no read of the topology alone, and
-// those records (an allocation and a reference to the file's mapping per leaf, a fifth of the gyroid's
-// open and about 130 MB of its peak) serve only delayed loading, while this reader reads each leaf's
-// voxels from the record the walk of the stored tree found (StoredLeaves). The leaves come without
-// voxel buffers (empty() until read).
-class GridRecordReader : public openvdb::io::Archive {
-public:
-    static openvdb::GridBase::Ptr readTopology(const std::string& path, const openvdb::io::File& file,
-                                               const openvdb::GridBase& meta, uint64_t gridPos)
-    {
-        std::ifstream is(path, std::ios::binary);
-        is.seekg(std::streamoff(gridPos));
-        if (!is) throw std::runtime_error("cannot seek to the grid");
-        auto streamMeta = std::make_shared<openvdb::io::StreamMetadata>();
-        openvdb::io::setStreamMetadataPtr(is, streamMeta, /*transfer=*/false);
-        openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
-        openvdb::io::setDataCompression(is, file.compression());
-        readGridCompression(is);
-        openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(meta.type());
-        grid->setSaveFloatAsHalf(meta.saveFloatAsHalf());
-        streamMeta->setHalfFloat(grid->saveFloatAsHalf());
-        openvdb::io::setGridClass(is, openvdb::GRID_UNKNOWN);
-        openvdb::io::setGridBackgroundValuePtr(is, nullptr);
-        grid->readMeta(is);
-        grid->removeMeta(openvdb::GridBase::META_FILE_DELAYED_LOAD);  // sizes for the records' reads only
-        streamMeta->gridMetadata() = static_cast<openvdb::MetaMap&>(*grid);
-        openvdb::io::setGridClass(is, grid->getGridClass());
-        grid->readTransform(is);
-        grid->readTopology(is);
-        if (!is) throw std::runtime_error("its topology ends early");
-        return grid;
-    }
-};
+// A grid with the metadata and transform OpenVDB read when it listed the file's grids (`meta`), and the
+// topology read from `topologyPos` as io::Archive::readGrid reads it, but without the leaves'
+// delayed-load records: OpenVDB 10 offers no read of the topology alone, and those records (an
+// allocation and a reference to the file's mapping per leaf, about 130 MB of the gyroid's peak)
+// serve only delayed loading, while this reader reads each leaf's voxels from the record the walk of
+// the stored tree found (StoredLeaves). The leaves come without voxel buffers (empty() until read).
+openvdb::GridBase::Ptr readTopologyAlone(const std::string& path, const openvdb::io::File& file,
+                                         const openvdb::GridBase& meta, const VdbGridLayout& layout)
+{
+    openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(meta.type());
+    grid->setSaveFloatAsHalf(meta.saveFloatAsHalf());
+    for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)  // the per-leaf sizes serve the records' reads only
+        if (it->first != openvdb::GridBase::META_FILE_DELAYED_LOAD) grid->insertMeta(it->first, *it->second);
+    grid->setTransform(meta.transform().copy());
+    std::ifstream is(path, std::ios::binary);
+    is.seekg(std::streamoff(layout.topologyPos));
+    if (!is) throw std::runtime_error("cannot seek to its topology");
+    auto streamMeta = std::make_shared<openvdb::io::StreamMetadata>();
+    openvdb::io::setStreamMetadataPtr(is, streamMeta, /*transfer=*/false);
+    openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
+    openvdb::io::setDataCompression(is, layout.compression);
+    openvdb::io::setHalfFloat(is, grid->saveFloatAsHalf());
+    openvdb::io::setGridClass(is, grid->getGridClass());
+    openvdb::io::setGridBackgroundValuePtr(is, nullptr);
+    grid->readTopology(is);
+    if (!is) throw std::runtime_error("its topology ends early");
+    return grid;
+}
 
 bool isScalar(const openvdb::GridBase& g) { return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>(); }
 
@@ -956,12 +949,12 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     // Where the walk found every leaf's record, the voxels are read from there and OpenVDB reads the
     // topology alone.
-    const bool fromRecords = layout.checked && layout.gridPos != 0 && !layout.recordStarts.empty() &&
+    const bool fromRecords = layout.checked && layout.topologyPos != 0 && !layout.recordStarts.empty() &&
                              layout.fileVersion >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION &&
                              openvdb::io::Archive::isDelayedLoadingEnabled();
     openvdb::GridBase::Ptr grid;
     try {
-        grid = fromRecords ? GridRecordReader::readTopology(path, file, *meta, layout.gridPos) : file.readGrid(meta->getName());
+        grid = fromRecords ? readTopologyAlone(path, file, *meta, layout) : file.readGrid(meta->getName());
     } catch (const std::bad_alloc&) {
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (out of memory reading its topology)");
     } catch (const std::exception& e) {

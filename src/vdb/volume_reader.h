@@ -1,5 +1,6 @@
-// Volume reader: opens a scalar grid of an OpenVDB file with delayed loading (voxel buffers are read
-// when first sampled) and gives the rest of the pipeline what it needs, independent of float/double:
+// Volume reader: opens a scalar grid of an OpenVDB file without its voxels (OpenVDB reads the topology;
+// each leaf's voxels are read from its stored record when first sampled, or through OpenVDB's delayed
+// loading where the records were not walked) and gives the rest of the pipeline what it needs, independent of float/double:
 // the block list, 9^3 block samples, the index-to-world map and the grid's sign convention.
 #pragma once
 #include <array>
@@ -102,7 +103,8 @@ public:
     // How many leaves parkLeaf has parked so far.
     uint64_t parkedLeaves() const { return mParked.load(std::memory_order_relaxed); }
     // True where the voxels are read from the leaves' records as the walk of the stored tree found them
-    // (every checked file with grid offsets), false where OpenVDB's delayed load reads them.
+    // (every checked file with grid offsets: OpenVDB then reads the topology alone), false where
+    // OpenVDB's delayed load reads them.
     bool readsStoredRecords() const { return mStored != nullptr; }
 
     // A pass over the blocks before extraction (the face count of a face target) that leaves this
@@ -148,7 +150,7 @@ protected:
     // Set where the walk of the stored tree found every leaf's record: a leaf's voxels are read from
     // the file with pread() and decoded here, not through OpenVDB's mapping of the file.
     std::shared_ptr<const StoredLeaves> mStored;
-    bool mFromFile = true;  // read from a file with delayed loading: buffers may be freed as blocks finish
+    bool mFromFile = true;  // read from a file, voxels on disk until sampled: buffers may be freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
     std::atomic<uint64_t> mParked{0};
 
