@@ -1,7 +1,8 @@
 // Volume reader: opens a scalar grid of an OpenVDB file without its voxels (OpenVDB reads the topology;
 // each leaf's voxels are read from its stored record when first sampled, or through OpenVDB's delayed
-// loading where the records were not walked) and gives the rest of the pipeline what it needs, independent of float/double:
-// the block list, 9^3 block samples, the index-to-world map and the grid's sign convention.
+// loading where the records were not walked) and gives the rest of the pipeline what it needs,
+// independent of float/double: the block list, 9^3 block samples, the index-to-world map and the
+// grid's sign convention.
 #pragma once
 #include <array>
 #include <atomic>
@@ -150,7 +151,7 @@ protected:
     // Set where the walk of the stored tree found every leaf's record: a leaf's voxels are read from
     // the file with pread() and decoded here, not through OpenVDB's mapping of the file.
     std::shared_ptr<const StoredLeaves> mStored;
-    bool mFromFile = true;  // read from a file, voxels on disk until sampled: buffers may be freed as blocks finish
+    bool mFromFile = true;  // read from a file, voxels on disk until sampled: freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
     std::atomic<uint64_t> mParked{0};
 
