@@ -531,14 +531,13 @@ public:
             tbb::blocked_range<size_t>(first, last, 64), Range{lo, hi},
             [&](const tbb::blocked_range<size_t>& br, Range acc) {
                 for (size_t i = br.begin(); i != br.end(); ++i) {
-                    std::optional<LeafT> read;  // the grid's own leaf stays on disk
-                    if (!release && leaves[i]->buffer().empty()) {
-                        read.emplace(*leaves[i]);
-                        loadLeaf(*read, mInfo.gridName, mStored.get(), mGrid->background());
-                    } else if (leaves[i]->buffer().empty()) {
-                        loadLeaf(*leaves[i], mInfo.gridName, mStored.get(), mGrid->background());
+                    LeafT* leaf = leaves[i];
+                    std::optional<LeafT> copyOf;
+                    if (leaf->buffer().empty()) {
+                        if (!release) leaf = &copyOf.emplace(*leaf);  // the grid's own leaf stays on disk
+                        loadLeaf(*leaf, mInfo.gridName, mStored.get(), mGrid->background());
                     }
-                    const auto* v = read ? read->buffer().data() : leaves[i]->buffer().data();
+                    const auto* v = leaf->buffer().data();
                     const auto mm = std::minmax_element(v, v + LeafT::SIZE);
                     acc = {std::min(acc[0], double(*mm.first)), std::max(acc[1], double(*mm.second))};
                     if (release) {
