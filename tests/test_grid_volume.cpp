@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <map>
 #include <filesystem>
 #include <set>
 
@@ -24,6 +25,20 @@ namespace vi = vdb_isosimp;
 namespace vt = vdb_isosimp::testing;
 
 namespace {
+
+// The most leaves in one z-layer of leaves, counted leaf by leaf (the memory estimate's layer size).
+uint64_t fullestLeafLayer(const openvdb::GridBase& grid)
+{
+    std::map<int32_t, uint64_t> perLayer;
+    const auto count = [&](const auto& tree) {
+        for (auto it = tree.cbeginLeaf(); it; ++it) ++perLayer[it->origin().z()];
+    };
+    if (const auto* f = dynamic_cast<const openvdb::FloatGrid*>(&grid)) count(f->tree());
+    if (const auto* d = dynamic_cast<const openvdb::DoubleGrid*>(&grid)) count(d->tree());
+    uint64_t most = 0;
+    for (const auto& layer : perLayer) most = std::max(most, layer.second);
+    return most;
+}
 
 void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
 {
@@ -38,6 +53,8 @@ void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
     EXPECT_EQ(a.background, b.background);
     EXPECT_EQ(a.leafCount, b.leafCount);
     EXPECT_EQ(a.activeVoxels, b.activeVoxels);
+    EXPECT_EQ(a.maxLeavesPerLayer, fullestLeafLayer(*grid));
+    EXPECT_EQ(b.maxLeavesPerLayer, fullestLeafLayer(*grid));
     EXPECT_EQ(fromFile->valueRange(), inMemory->valueRange());
 
     vi::Classifier c;
@@ -140,6 +157,8 @@ TEST(FileVolume, ReadsEveryStoredFormatAsOpenVDBLoadsIt)
             const auto fromFile = vi::Volume::open(path, grid->getName());
             const auto inMemory = vi::Volume::fromGrid(grid, "grid read whole");
             EXPECT_TRUE(fromFile->readsStoredRecords());
+            EXPECT_EQ(fromFile->info().leafCount, grid->baseTree().leafCount());
+            EXPECT_EQ(fromFile->info().maxLeavesPerLayer, fullestLeafLayer(*grid));
             // The value range a fog grid's default iso-value comes from: read leaf by leaf from the
             // records, against the grid read whole.
             EXPECT_EQ(fromFile->valueRange(), inMemory->valueRange());

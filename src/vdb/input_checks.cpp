@@ -30,6 +30,15 @@
 
 namespace vdb_isosimp {
 
+// Per-leaf copy of the value-compression codes and chunk sizes that newer files carry in the grid's
+// metadata ("file_delayed_load"). OpenVDB seeks over leaves with these sizes rather than the ones in
+// the data, so they must agree with the data.
+struct DelayedLoadSizes {
+    bool present = false;
+    std::vector<int8_t> codes;
+    std::vector<int64_t> sizes;
+};
+
 // ---------------------------------------------------------------------------------------------
 // File structure
 
@@ -281,28 +290,20 @@ std::string walkValues(BoundedReader& in, uint32_t compression, bool half, uint6
     return in.seek(start + uint64_t(n)) ? "" : "ends early";
 }
 
-// Per-leaf copy of the value-compression codes and chunk sizes that newer files carry in the grid's
-// metadata ("file_delayed_load"). OpenVDB seeks over leaves with these sizes rather than the ones in
-// the data, so they must agree with the data.
-struct DelayedLoadSizes {
-    bool present = false;
-    std::vector<int8_t> codes;
-    std::vector<int64_t> sizes;
-};
-
 // One of the two arrays of "file_delayed_load": uint32 stored size (0: raw), then blosc or raw bytes.
 // OpenVDB pads arrays of 48 to 127 bytes to 128 before blosc compresses them.
 constexpr uint64_t kBloscPadBytes = 128;
 
-std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, size_t elem, std::vector<char>* out)
+template <typename T>
+std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, std::vector<T>* out)
 {
     uint32_t bytes = 0;
     if (!in.value(bytes)) return "ends early";
-    const uint64_t want = uint64_t(count) * elem;
+    const uint64_t want = uint64_t(count) * sizeof(T);
     if (bytes == 0) {
         if (want > end - std::min(end, in.pos())) return "array runs past the metadata";
         if (out) {
-            out->resize(size_t(want));
+            out->resize(count);
             return want == 0 || in.bytes(out->data(), want) ? "" : "ends early";
         }
         return in.skip(want) ? "" : "ends early";
@@ -319,13 +320,23 @@ std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, si
     if (out) {
         std::vector<char> packed(bytes);
         if (!in.seek(start) || !in.bytes(packed.data(), bytes)) return "ends early";
-        out->assign(size_t(packedBytes) + 16, 0);  // c-blosc's room for its overhead
+        // Decoded in place, with c-blosc's room for its overhead; a padded array through a small buffer.
+        constexpr size_t kRoom = 16;
         try {
-            openvdb::compression::bloscDecompress(out->data(), size_t(want), out->size(), packed.data());
+            if (packedBytes == want) {
+                out->resize(count + (kRoom + sizeof(T) - 1) / sizeof(T));
+                openvdb::compression::bloscDecompress(reinterpret_cast<char*>(out->data()), size_t(want),
+                                                      out->size() * sizeof(T), packed.data());
+            } else {
+                char padded[kBloscPadBytes + kRoom];
+                openvdb::compression::bloscDecompress(padded, size_t(packedBytes), sizeof padded, packed.data());
+                out->resize(count);
+                if (want) std::memcpy(out->data(), padded, size_t(want));
+            }
         } catch (const std::exception&) {
             return "array does not decompress";
         }
-        out->resize(size_t(want));
+        out->resize(count);
     }
     return in.seek(start + bytes) ? "" : "ends early";
 }
@@ -370,22 +381,19 @@ std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, Del
             uint32_t leaves = 0;
             if (!in.value(leaves)) return "delayed-load metadata ends early";
             if (leaves > maxLeaves) return "delayed-load metadata lists more leaves than the grid's data holds";
-            std::vector<char> codes, sizes;
-            std::string why = readDelayedArray(in, valueEnd, leaves, 1, delayed ? &codes : nullptr);
+            std::string why = readDelayedArray(in, valueEnd, leaves, delayed ? &delayed->codes : nullptr);
             uint32_t sizesBytes = 0;
             if (why.empty() && !in.value(sizesBytes)) why = "ends early";
             if (why.empty() && sizesBytes != std::numeric_limits<uint32_t>::max()) {
                 in.seek(in.pos() - 4);
-                why = readDelayedArray(in, valueEnd, leaves, 8, delayed ? &sizes : nullptr);
+                why = readDelayedArray(in, valueEnd, leaves, delayed ? &delayed->sizes : nullptr);
             }
             if (why.empty() && in.pos() > valueEnd) why = "runs past its stated size";
-            if (!why.empty()) return "delayed-load metadata: " + why;
-            if (delayed) {
-                delayed->present = true;
-                delayed->codes.assign(codes.begin(), codes.end());
-                delayed->sizes.resize(sizes.size() / 8);
-                if (!sizes.empty()) std::memcpy(delayed->sizes.data(), sizes.data(), sizes.size());
+            if (!why.empty()) {
+                if (delayed) *delayed = DelayedLoadSizes();
+                return "delayed-load metadata: " + why;
             }
+            if (delayed) delayed->present = true;
         }
         if (!in.seek(valueStart + n)) return "metadata '" + printable(name) + "' ends early";
     }
@@ -530,10 +538,11 @@ VdbFileEntries checkVdbFileStructure(const std::string& path)
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) return f;
     BoundedReader in(path, uint64_t(st.st_size));
-    for (const GridEntry& e : f.grids) {
+    for (GridEntry& e : f.grids) {
         uint32_t compression = 0;
-        DelayedLoadSizes delayed;  // decoded too: OpenVDB decodes it when it lists the grids
-        walkGridHeader(path, in, e, compression, &delayed);
+        auto delayed = std::make_shared<DelayedLoadSizes>();  // decoded too: OpenVDB decodes it when it lists the grids
+        walkGridHeader(path, in, e, compression, delayed.get());
+        if (delayed->present) e.delayed = std::move(delayed);
     }
     return f;
 }
@@ -734,6 +743,10 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     const std::string& name = e.name;
     const bool locate = e.streamed && e.blockPos == 0;
     TopologyWalk topo{path, name, in, compression, half, valueSize, layout};
+    if (delayed.present) {  // the leaf count the metadata states (bounded by the grid's bytes when it was read)
+        layout.leafOrigins.reserve(delayed.codes.size());
+        layout.leafActive.reserve(delayed.codes.size());
+    }
     topo.root();
     if (locate) e.blockPos = in.pos();
     if (in.pos() != e.blockPos)
@@ -873,10 +886,11 @@ VdbGridLayout checkVdbGridData(const std::string& path, const VdbFileEntries& f,
     if (::stat(path.c_str(), &st) != 0) return layout;
     BoundedReader in(path, uint64_t(st.st_size));
     uint32_t compression = 0;
-    DelayedLoadSizes delayed;
-    if (!walkGridHeader(path, in, tree, compression, &delayed)) return layout;
+    // The delayed-load metadata checkVdbFileStructure decoded, else decoded here.
+    DelayedLoadSizes decoded;
+    if (!walkGridHeader(path, in, tree, compression, tree.delayed ? nullptr : &decoded)) return layout;
     const uint64_t topologyPos = in.pos();
-    walkTree(path, in, tree, compression, half, valueSize, delayed, layout, share);
+    walkTree(path, in, tree, compression, half, valueSize, tree.delayed ? *tree.delayed : decoded, layout, share);
     std::vector<uint16_t>().swap(layout.leafActive);
     layout.topologyPos = e->parent.empty() && !e->streamed ? topologyPos : 0;
     layout.fileVersion = f.version;

@@ -17,6 +17,9 @@
 
 namespace vdb_isosimp {
 
+// A grid's per-leaf codes and chunk sizes from its delayed-load metadata (input_checks.cpp).
+struct DelayedLoadSizes;
+
 // One grid as the file's descriptor states it.
 struct VdbGridEntry {
     std::string uniqueName;  // as stored: the name plus a suffix when names repeat
@@ -26,6 +29,9 @@ struct VdbGridEntry {
     std::string parent;      // instance parent (unique name); empty for a grid with its own tree
     uint64_t gridPos = 0, blockPos = 0, endPos = 0;
     bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
+    // Its delayed-load metadata as checkVdbFileStructure decoded it (null: none, or not decoded there),
+    // which checkVdbGridData walks the grid's records with instead of decoding it again.
+    std::shared_ptr<const DelayedLoadSizes> delayed;
 };
 
 // Where a file's grids lie, as checkVdbFileStructure found them.

@@ -208,16 +208,21 @@ void loadLeaf(LeafT& leaf, const std::string& gridName, const StoredLeaves* stor
     throw InputError("grid '" + gridName + "', leaf " + coordText(leaf.origin()) + ": " + what);
 }
 
+// Where a volume's grid comes from: a caller's grid (whole, kept), or a file's, whose voxels OpenVDB left
+// on disk behind delayed-load records (through the file's mapping) or whose topology it read alone (the
+// voxels come from the records the walk of the stored tree found, StoredLeaves).
+enum class GridSource { Caller, DelayedLoad, TopologyAlone };
+
 template <typename GridT>
 class VolumeT final : public Volume {
 public:
     using ValueT = typename GridT::ValueType;
 
-    VolumeT(typename GridT::Ptr grid, VolumeInfo info, bool fromFile) : mGrid(std::move(grid))
+    VolumeT(typename GridT::Ptr grid, VolumeInfo info, GridSource source) : mGrid(std::move(grid))
     {
         mInfo = std::move(info);
-        mFromFile = fromFile;
-        if (fromFile) {
+        mFromFile = source != GridSource::Caller;
+        if (source == GridSource::DelayedLoad) {
             keepMappingAlive();
             trimInputMapping();  // the topology was read through the mapping
         }
@@ -722,16 +727,20 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
     info.activeVoxels = g.activeVoxelCount();
     info.topologyBytes = tree.memUsage();
     info.valueBytes = sizeof(typename GridT::ValueType);
-    std::vector<int32_t> z;
-    z.reserve(size_t(info.leafCount));
-    for (auto it = tree.cbeginLeaf(); it; ++it) z.push_back(it->origin().z());
-    std::sort(z.begin(), z.end());
-    for (size_t i = 0; i < z.size();) {
-        size_t j = i;
-        while (j < z.size() && z[j] == z[i]) ++j;
-        info.maxLeavesPerLayer = std::max<uint64_t>(info.maxLeavesPerLayer, j - i);
-        i = j;
+    // Leaves per z-layer from the leaves' parents' child masks (a leaf's slot gives its z), without a
+    // visit to each of millions of leaves.
+    using LowerT = typename GridT::TreeType::RootNodeType::ChildNodeType::ChildNodeType;
+    constexpr openvdb::Index kSide = LowerT::DIM / LowerT::ChildNodeType::DIM;
+    std::vector<const LowerT*> parents;
+    tree.getNodes(parents);
+    std::map<int32_t, uint64_t> perLayer;
+    for (const LowerT* parent : parents) {
+        uint64_t counts[kSide] = {};
+        for (auto it = parent->cbeginChildOn(); it; ++it) ++counts[it.pos() % kSide];
+        for (openvdb::Index k = 0; k < kSide; ++k)
+            if (counts[k]) perLayer[parent->origin().z() + int32_t(k * LowerT::ChildNodeType::DIM)] += counts[k];
     }
+    for (const auto& layer : perLayer) info.maxLeavesPerLayer = std::max(info.maxLeavesPerLayer, layer.second);
 }
 
 // A grid with the metadata and transform OpenVDB read when it listed the file's grids (`meta`), and the
@@ -782,7 +791,7 @@ openvdb::GridBase::ConstPtr defaultGrid(const openvdb::GridPtrVec& metas)
 
 // What both entry points share once the grid is in hand: the info the pipeline needs, and the
 // checks that need the topology (never a voxel buffer).
-std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, bool fromFile,
+std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, GridSource source,
                                  double checkSeconds = 0.0)
 {
     VolumeInfo info;
@@ -799,11 +808,11 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
     if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
         info.background = f->background();
         topologyInfo(*f, info);
-        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, fromFile);
+        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, source);
     } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
         info.background = d->background();
         topologyInfo(*d, info);
-        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, fromFile);
+        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, source);
     } else {
         throw InputError(label + ": grid '" + info.gridName + "' is not a float or double grid");
     }
@@ -889,7 +898,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     if (!std::ifstream(path, std::ios::binary).good())
         throw InputError(path + ": cannot open file for reading (missing or unreadable)");
     // OpenVDB trusts the offsets a file states; a truncated file would send it into a loop.
-    const VdbFileEntries entries = checkVdbFileStructure(path);
+    VdbFileEntries entries = checkVdbFileStructure(path);
 
     openvdb::io::File file(path);
     openvdb::GridPtrVecPtr metas;
@@ -944,6 +953,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
                         [&](bool sound, uint64_t digest) { return agreeOnce.agree(true, sound, digest); }};
     const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement.agree ? &share : nullptr);
     agreeOnce.agree(false, false, 0);  // a tree this walk does not cover has no say
+    for (auto& g : entries.grids) g.delayed.reset();  // walked: OpenVDB reads the topology next
     const double checkSeconds = check.seconds();
 
     // Where the walk found every leaf's record, the voxels are read from there and OpenVDB reads the
@@ -970,25 +980,30 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
-    std::unique_ptr<Volume> volume = wrapGrid(grid, path, /*fromFile=*/true, checkSeconds);
+    std::unique_ptr<Volume> volume = wrapGrid(grid, path, fromRecords ? GridSource::TopologyAlone : GridSource::DelayedLoad, checkSeconds);
     volume->mUnwalked = layout.unwalked;
     if (layout.checked && !layout.recordStarts.empty()) {
         // Only where OpenVDB left voxels on disk (delayed loading may be switched off). The tree lists
         // its leaves in the file's order; where the walk kept their origins, they must agree (where it
-        // shared them out, keepLeaves checks the order before any read).
+        // shared them out, keepLeaves checks the order before any read, and the tree's are collected).
+        const std::vector<std::array<int32_t, 3>>& walked = layout.leafOrigins;
         std::vector<std::array<int32_t, 3>> origins;
-        origins.reserve(layout.leafCount);
-        bool onDisk = false;
+        bool onDisk = false, same = true;
         const auto collect = [&](const auto& tree) {
-            for (auto it = tree.cbeginLeaf(); it; ++it) {
-                origins.push_back({it->origin().x(), it->origin().y(), it->origin().z()});
+            size_t i = 0;
+            for (auto it = tree.cbeginLeaf(); it; ++it, ++i) {
+                const std::array<int32_t, 3> o{it->origin().x(), it->origin().y(), it->origin().z()};
+                if (walked.empty()) origins.push_back(o);
+                else same = same && i < walked.size() && walked[i] == o;
                 onDisk = onDisk || it->buffer().empty();
             }
+            same = same && (walked.empty() || i == walked.size());
         };
+        if (walked.empty()) origins.reserve(layout.leafCount);
         if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) collect(f->tree());
         else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) collect(d->tree());
-        if (onDisk && (layout.leafOrigins.empty() || layout.leafOrigins == origins)) {
-            auto stored = std::make_shared<const StoredLeaves>(path, layout, origins);
+        if (onDisk && same) {
+            auto stored = std::make_shared<const StoredLeaves>(path, layout, walked.empty() ? origins : walked);
             if (!stored->empty()) volume->mStored = std::move(stored);
         }
     }
@@ -1012,7 +1027,7 @@ std::unique_ptr<Volume> Volume::fromGrid(openvdb::GridBase::ConstPtr grid, const
         throw InputError(label + ": grid '" + grid->getName() + "' " + e.what());
     }
     // Never written to: a caller's grid is only read (releaseLeaf is a no-op for it).
-    return wrapGrid(openvdb::ConstPtrCast<openvdb::GridBase>(grid), label, /*fromFile=*/false);
+    return wrapGrid(openvdb::ConstPtrCast<openvdb::GridBase>(grid), label, GridSource::Caller);
 }
 
 } // namespace vdb_isosimp
