@@ -5,10 +5,11 @@ Input: the --report JSON of a single-process run (threads 1 gives clean per-node
 tree_end_slab, tree_seconds for every slab and every join) and the run's wall seconds (GNU time).
 Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/slabs.cpp):
   setup    : opening the file, the topology and the block list, the cut into slabs (seconds_open, _blocks,
-             _cut; and what no field times); every rank repeats it (serial). The block list, the cut and the
-             walk of the file's leaf records (seconds_check, of seconds_open) run on all of a process's
-             threads: in the threads' model and the bound, all but their serial share (BLOCKS_SERIAL,
-             CUT_SERIAL, CHECK_SERIAL) is divided among the threads. The ranks share the walk of the
+             _cut; and what no field times); every rank repeats it (serial). The block list, the cut, the
+             walk of the file's leaf records (seconds_check, of seconds_open) and the read of the topology's
+             lower nodes (seconds_topology, of seconds_open) run on all of a process's threads: in the
+             threads' model and the bound, all but their serial share (BLOCKS_SERIAL, CUT_SERIAL,
+             CHECK_SERIAL, TOPOLOGY_SERIAL) is divided among the threads. The ranks share the walk of the
              leaf records (LeafWalkShare): each walks its Nth before OpenVDB reads the tree and, after the
              cut, the records of the leaves it keeps that another rank walked, so a rank walks about 2/R of
              them (R ranks; all of them on one or two); the topology's walk (CHECK_SERIAL) each repeats. For
@@ -58,6 +59,9 @@ MESSAGE_BYTES_PER_FACE = 100.0  # measured at 448^3: 94-114 bytes per output fac
 BLOCKS_SERIAL = 0.41
 CUT_SERIAL = 0.25
 CHECK_SERIAL = 0.42
+# The topology's read (root and upper nodes in order, lower nodes on all threads): from the gyroid's open
+# at -j 1 and -j 2 (docs/scale.md).
+TOPOLOGY_SERIAL = 0.15
 WORKERS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
 RANK_THREADS = 8  # threads of each rank in the mixed schedule: ranks of one machine's cores each
 PATH_WORKERS = 16  # the width whose critical path is printed (the issue's target)
@@ -95,7 +99,7 @@ def model(report, wall, even=False):
     setup = max(0.0, report["seconds"] - report["seconds_slabs"] - report["seconds_final"] - count - layout)
     leaf_walk = report.get("seconds_check", 0.0) * (1 - CHECK_SERIAL)
     spread = (report.get("seconds_blocks", 0.0) * (1 - BLOCKS_SERIAL) + report.get("seconds_cut", 0.0) * (1 - CUT_SERIAL) +
-              leaf_walk)
+              report.get("seconds_topology", 0.0) * (1 - TOPOLOGY_SERIAL) + leaf_walk)
 
     def walk_share(ranks):
         # Of the leaf records' walk, what one of `ranks` ranks walks: its part, and its kept leaves' records.
@@ -259,7 +263,7 @@ def main(argv):
         setup, tree, final, rows, (critical, thread_path, hybrid_path) = model(report, wall)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
               f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
-        pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
+        pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "topology", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
         if pieces:
             print("setup: " + ", ".join(f"{k} {v:.2f} s" for k, v in pieces) + " (count, layout and samplers divided among workers)")
         print(f"| workers | ranks: modelled seconds | speed-up | threads: modelled seconds | speed-up | any schedule: at least | at most |"

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cstring>
 #include <map>
+#include <random>
 #include <filesystem>
 #include <set>
 
@@ -178,6 +179,61 @@ TEST(FileVolume, ReadsEveryStoredFormatAsOpenVDBLoadsIt)
         }
     }
     EXPECT_GE(grids, 12u);
+}
+
+TEST(FileVolume, ReadsTheTopologyOfManyNodesAsOpenVDBDoes)
+{
+    // The lower internal nodes are read on all threads, the root and upper nodes in order: a tree with
+    // tiles at every level (a root tile, an upper node of tiles only, lower tiles inside and outside),
+    // leaves in 150 lower nodes across eight upper nodes on both sides of the origin, read as OpenVDB
+    // reads it whole, for each way a file stores it.
+    openvdb::initialize();
+    auto grid = openvdb::FloatGrid::create(3.0f);
+    grid->setName("surface");
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    auto& tree = grid->tree();
+    tree.addTile(3, openvdb::Coord(8192, 0, 0), 5.0f, true);  // a root tile, outside (the largest value)
+    tree.addTile(2, openvdb::Coord(-8192, 4096, 0), -3.0f, false);  // an upper node's tile, no leaf below it
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> val(-2.0f, 2.0f);
+    for (int i = 0; i < 150; ++i) {
+        const openvdb::Coord o(128 * (i % 5 - 2), 128 * (i / 5 % 6 - 3) + 8 * (i % 3), 128 * (i / 30 - 2) + 16);
+        auto* leaf = tree.touchLeaf(o);
+        for (openvdb::Index n = 0; n < openvdb::FloatTree::LeafNodeType::SIZE; n += 1 + n % 3) leaf->setValueOn(n, val(rng));
+        tree.addTile(1, o.offsetBy(32, 0, 0), i % 2 ? -1.5f : 1.5f, i % 4 == 0);
+    }
+    using namespace openvdb::io;
+    for (const uint32_t compression : {uint32_t(COMPRESS_NONE), uint32_t(COMPRESS_ZIP), uint32_t(COMPRESS_BLOSC | COMPRESS_ACTIVE_MASK)})
+        for (const bool half : {false, true}) {
+            SCOPED_TRACE("compression " + std::to_string(compression) + (half ? ", half floats" : ""));
+            grid->setSaveFloatAsHalf(half);
+            const std::string path = ::testing::TempDir() + "/many_nodes.vdb";
+            vdb_samples::write(path, {grid}, compression);
+            File whole(path);
+            whole.open(/*delayLoad=*/false);
+            const auto read = whole.readGrid("surface");
+            const auto fromFile = vi::Volume::open(path, "");
+            const auto inMemory = vi::Volume::fromGrid(read, "grid read whole");
+            EXPECT_TRUE(fromFile->readsStoredRecords());
+            const vi::VolumeInfo &a = fromFile->info(), &b = inMemory->info();
+            EXPECT_EQ(a.leafCount, 150u);
+            EXPECT_EQ(a.leafCount, b.leafCount);
+            EXPECT_EQ(a.activeVoxels, b.activeVoxels);
+            EXPECT_EQ(a.maxLeavesPerLayer, fullestLeafLayer(*read));
+            EXPECT_EQ(fromFile->valueRange(), inMemory->valueRange());
+            vi::Classifier c;
+            c.insideBelow = true;
+            EXPECT_EQ(fromFile->tileShellBlocks(c), inMemory->tileShellBlocks(c));
+            const auto blocks = fromFile->blocks(c);
+            ASSERT_EQ(blocks, inMemory->blocks(c));
+            fromFile->keepLeaves({});
+            vi::BlockSamples s1, s2;
+            for (const auto& o : blocks) {
+                fromFile->sample(o, s1);
+                inMemory->sample(o, s2);
+                ASSERT_EQ(s1.values, s2.values);
+            }
+        }
 }
 
 TEST(FileVolume, DroppingTheInputMappingNeverTouchesOtherMemory)

@@ -173,6 +173,7 @@ struct Report {
     // which leaf (each rank over its own blocks).
     double secondsOpen = 0.0, secondsBlocks = 0.0, secondsCut = 0.0, secondsSamplers = 0.0;
     double secondsCheck = 0.0;        // of secondsOpen: walking the file's records before OpenVDB reads it
+    double secondsTopology = 0.0;     // of secondsOpen: reading the topology, its lower nodes on all threads
     double peakRssMb = 0.0;
     uint64_t slabs = 0;               // independent pieces of work (Options::blocksPerSlab)
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.

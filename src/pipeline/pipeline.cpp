@@ -211,6 +211,7 @@ void PipelineRun::openVolume(const VolumeOpener& open)
     mSampled = {mInfo.background, mInfo.background};
     rep.secondsOpen = mClock.seconds() - start;
     rep.secondsCheck = mInfo.checkSeconds;
+    rep.secondsTopology = mInfo.topologySeconds;
 }
 
 void PipelineRun::chooseIso()

@@ -59,6 +59,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds_layout", r.secondsLayout),
             real("seconds_open", r.secondsOpen),
             real("seconds_check", r.secondsCheck),
+            real("seconds_topology", r.secondsTopology),
             real("seconds_blocks", r.secondsBlocks),
             real("seconds_cut", r.secondsCut),
             real("seconds_samplers", r.secondsSamplers),

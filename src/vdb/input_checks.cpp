@@ -602,7 +602,9 @@ struct TopologyWalk {
                 const std::array<int32_t, 3> c = {at(0, i >> (2 * log2)), at(1, (i >> log2) & uint64_t(dim - 1)),
                                                   at(2, i & uint64_t(dim - 1))};
                 if (log2 == kLog2Upper) {
+                    const uint64_t start = in.pos();
                     internal(kLog2Lower, c);
+                    out.lowerNodes.push_back({start, in.pos()});
                 } else {
                     uint64_t mask[8];
                     if (!in.bytes(mask, sizeof mask)) fail("ends early");
@@ -775,7 +777,8 @@ void walkTree(const std::string& path, BoundedReader& in, GridEntry& e, uint32_t
     if (split) sound = share->allSound(sound, digest);
     if (sound) {
         in.seek(e.endPos);
-        layout.recordStarts = at;
+        if (split) layout.recordStarts = at;  // and KeptRecordsWalk keeps them too
+        else layout.recordStarts = std::move(at);
     } else {
         layout.recordStarts.resize(leaves + 1);
         for (size_t i = 0; i < leaves; ++i) {

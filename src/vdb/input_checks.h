@@ -69,6 +69,9 @@ struct VdbGridLayout {
     // Where the grid's topology starts in the file, after its compression flags, metadata and
     // transform; 0 for an instance (its tree is its parent's) and for a file written as a stream.
     uint64_t topologyPos = 0;
+    // Where each lower internal node's topology (its masks, tile values and leaves' masks) starts and
+    // ends, in file order: what OpenVDB's own node reads take on all threads (volume_reader.cpp).
+    std::vector<std::array<uint64_t, 2>> lowerNodes;
     uint32_t fileVersion = 0, compression = 0;
     bool half = false;
     // Where the processes of a distributed run shared the walk (LeafWalkShare): the records of the

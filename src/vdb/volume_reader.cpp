@@ -11,6 +11,7 @@
 #include <openvdb/io/io.h>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
@@ -743,6 +744,108 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
     for (const auto& layer : perLayer) info.maxLeavesPerLayer = std::max(info.maxLeavesPerLayer, layer.second);
 }
 
+// A stream over the file with what OpenVDB's node reads ask of it (io::Archive sets the same).
+struct TopologyStream {
+    std::ifstream is;
+    std::shared_ptr<openvdb::io::StreamMetadata> meta = std::make_shared<openvdb::io::StreamMetadata>();
+
+    TopologyStream(const std::string& path, const openvdb::io::File& file, const VdbGridLayout& layout,
+                   const openvdb::GridBase& grid, const void* background)
+        : is(path, std::ios::binary)
+    {
+        openvdb::io::setStreamMetadataPtr(is, meta, /*transfer=*/false);
+        openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
+        openvdb::io::setDataCompression(is, layout.compression);
+        openvdb::io::setHalfFloat(is, grid.saveFloatAsHalf());
+        openvdb::io::setGridClass(is, grid.getGridClass());
+        openvdb::io::setGridBackgroundValuePtr(is, background);
+    }
+    void seek(uint64_t pos)
+    {
+        is.seekg(std::streamoff(pos));
+        if (!is) throw std::runtime_error("cannot seek to its topology");
+    }
+    template <typename T>
+    T value()
+    {
+        T v{};
+        is.read(reinterpret_cast<char*>(&v), sizeof v);
+        return v;
+    }
+};
+
+// The tree's topology as Tree::readTopology reads it, with the lower internal nodes (and their
+// millions of leaves) read by OpenVDB's own InternalNode::readTopology on all threads, each from where
+// the walk of the stored tree found it starts (VdbGridLayout::lowerNodes); the root and the upper
+// nodes, a few kilobytes, are read here in order as RootNode and InternalNode read them.
+template <typename GridT>
+void readTopologyOnAllThreads(GridT& grid, const std::string& path, const openvdb::io::File& file, const VdbGridLayout& layout)
+{
+    using TreeT = typename GridT::TreeType;
+    using RootT = typename TreeT::RootNodeType;
+    using UpperT = typename RootT::ChildNodeType;
+    using LowerT = typename UpperT::ChildNodeType;
+    using ValueT = typename GridT::ValueType;
+    const bool half = grid.saveFloatAsHalf();
+
+    TopologyStream top(path, file, layout, grid, nullptr);
+    top.seek(layout.topologyPos);
+    top.template value<int32_t>();  // the buffer count (TreeBase::readTopology): 1, checked by the walk
+    const ValueT background = top.template value<ValueT>();
+    openvdb::io::setGridBackgroundValuePtr(top.is, &background);
+    auto tree = std::make_shared<TreeT>(background);
+    const auto tiles = top.template value<openvdb::Index32>(), children = top.template value<openvdb::Index32>();
+    for (openvdb::Index32 n = 0; n < tiles; ++n) {
+        const auto xyz = top.template value<std::array<openvdb::Int32, 3>>();
+        const ValueT value = top.template value<ValueT>();
+        const bool active = top.template value<bool>();
+        tree->root().addTile(openvdb::Coord(xyz[0], xyz[1], xyz[2]), value, active);
+    }
+    struct Lower {
+        UpperT* parent;
+        openvdb::Coord origin;
+        std::unique_ptr<LowerT> node;
+    };
+    std::vector<std::unique_ptr<UpperT>> uppers;
+    std::vector<Lower> lowers;
+    lowers.reserve(layout.lowerNodes.size());
+    std::unique_ptr<ValueT[]> values(new ValueT[UpperT::NUM_VALUES]);
+    for (openvdb::Index32 c = 0; c < children && top.is; ++c) {
+        const auto xyz = top.template value<std::array<openvdb::Int32, 3>>();
+        uppers.push_back(std::make_unique<UpperT>(openvdb::PartialCreate(), openvdb::Coord(xyz[0], xyz[1], xyz[2]), background));
+        UpperT& upper = *uppers.back();
+        typename UpperT::NodeMaskType childMask, valueMask;
+        childMask.load(top.is);
+        valueMask.load(top.is);
+        openvdb::io::readCompressedValues(top.is, values.get(), UpperT::NUM_VALUES, valueMask, half);
+        for (openvdb::Index n = 0; n < UpperT::NUM_VALUES; ++n)
+            if (!childMask.isOn(n)) upper.addTile(n, values[n], valueMask.isOn(n));
+        bool first = true;
+        for (auto it = childMask.beginOn(); it; ++it, first = false) {
+            const size_t k = lowers.size();
+            if (k >= layout.lowerNodes.size() || (first && uint64_t(top.is.tellg()) != layout.lowerNodes[k][0]))
+                throw std::runtime_error("its topology is not the walked one");
+            lowers.push_back({&upper, upper.offsetToGlobalCoord(it.pos()), nullptr});
+            top.seek(layout.lowerNodes[k][1]);
+        }
+    }
+    if (!top.is || lowers.size() != layout.lowerNodes.size()) throw std::runtime_error("its topology ends early");
+    std::atomic<bool> sound{true};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, lowers.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+        TopologyStream in(path, file, layout, grid, &background);
+        for (size_t k = r.begin(); k != r.end() && sound; ++k) {
+            in.seek(layout.lowerNodes[k][0]);
+            lowers[k].node = std::make_unique<LowerT>(openvdb::PartialCreate(), lowers[k].origin, background);
+            lowers[k].node->readTopology(in.is, half);
+            if (!in.is || uint64_t(in.is.tellg()) != layout.lowerNodes[k][1]) sound = false;
+        }
+    });
+    if (!sound) throw std::runtime_error("its topology ends early");
+    for (Lower& l : lowers) l.parent->addChild(l.node.release());
+    for (auto& upper : uppers) tree->root().addChild(upper.release());
+    grid.setTree(tree);
+}
+
 // A grid with the metadata and transform OpenVDB read when it listed the file's grids (`meta`), and the
 // topology read from `topologyPos` as io::Archive::readGrid reads it, but without the leaves'
 // delayed-load records: OpenVDB 10 offers no read of the topology alone, and those records (an
@@ -757,18 +860,9 @@ openvdb::GridBase::Ptr readTopologyAlone(const std::string& path, const openvdb:
     for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)  // the per-leaf sizes serve the records' reads only
         if (it->first != openvdb::GridBase::META_FILE_DELAYED_LOAD) grid->insertMeta(it->first, *it->second);
     grid->setTransform(meta.transform().copy());
-    std::ifstream is(path, std::ios::binary);
-    is.seekg(std::streamoff(layout.topologyPos));
-    if (!is) throw std::runtime_error("cannot seek to its topology");
-    auto streamMeta = std::make_shared<openvdb::io::StreamMetadata>();
-    openvdb::io::setStreamMetadataPtr(is, streamMeta, /*transfer=*/false);
-    openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
-    openvdb::io::setDataCompression(is, layout.compression);
-    openvdb::io::setHalfFloat(is, grid->saveFloatAsHalf());
-    openvdb::io::setGridClass(is, grid->getGridClass());
-    openvdb::io::setGridBackgroundValuePtr(is, nullptr);
-    grid->readTopology(is);
-    if (!is) throw std::runtime_error("its topology ends early");
+    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) readTopologyOnAllThreads(*f, path, file, layout);
+    else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) readTopologyOnAllThreads(*d, path, file, layout);
+    else throw std::runtime_error("not a float or double grid");
     return grid;
 }
 
@@ -962,6 +1056,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
                              layout.fileVersion >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION &&
                              openvdb::io::Archive::isDelayedLoadingEnabled();
     openvdb::GridBase::Ptr grid;
+    const Stopwatch topology;
     try {
         grid = fromRecords ? readTopologyAlone(path, file, *meta, layout) : file.readGrid(meta->getName());
     } catch (const std::bad_alloc&) {
@@ -980,7 +1075,10 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         throw InputError(path + ": grid '" + meta->getName() + "' " + e.what());
     }
 
-    std::unique_ptr<Volume> volume = wrapGrid(grid, path, fromRecords ? GridSource::TopologyAlone : GridSource::DelayedLoad, checkSeconds);
+    const double topologySeconds = fromRecords ? topology.seconds() : 0.0;
+    std::unique_ptr<Volume> volume =
+        wrapGrid(grid, path, fromRecords ? GridSource::TopologyAlone : GridSource::DelayedLoad, checkSeconds);
+    volume->mInfo.topologySeconds = topologySeconds;
     volume->mUnwalked = layout.unwalked;
     if (layout.checked && !layout.recordStarts.empty()) {
         // Only where OpenVDB left voxels on disk (delayed loading may be switched off). The tree lists

@@ -54,6 +54,8 @@ struct VolumeInfo {
     // Of opening a file: the walk of its stored tree before OpenVDB reads it (checkVdbGridData),
     // whose leaf records divide among threads.
     double checkSeconds = 0.0;
+    // And OpenVDB's read of the topology, whose lower nodes divide among threads (0: read by OpenVDB alone).
+    double topologySeconds = 0.0;
 };
 
 class Volume {
