@@ -39,7 +39,7 @@ void sampleGrid(const GridT& grid, const std::vector<std::array<float, 3>>& poin
     out.values.resize(points.size() * n);
     const openvdb::math::Transform& xform = grid.transform();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        auto acc = grid.getConstAccessor();
+        auto acc = grid.getConstUnsafeAccessor();  // one run of points on a grid read whole: not registered (volume_reader.cpp)
         for (size_t i = r.begin(); i != r.end(); ++i) {
             const openvdb::Vec3d world(points[i][0], points[i][1], points[i][2]);
             const ValueT v = openvdb::tools::BoxSampler::sample(acc, xform.worldToIndex(world));
@@ -100,7 +100,7 @@ void AttributeSampler::sampleFirst(const std::vector<std::array<double, 3>>& poi
 {
     out.resize(points.size());
     const auto run = [&](const auto& grid) {
-        auto acc = grid.getConstAccessor();
+        auto acc = grid.getConstUnsafeAccessor();
         const openvdb::math::Transform& xform = grid.transform();
         for (size_t i = 0; i < points.size(); ++i)
             out[i] = double(openvdb::tools::BoxSampler::sample(acc, xform.worldToIndex(openvdb::Vec3d(points[i][0], points[i][1], points[i][2]))));

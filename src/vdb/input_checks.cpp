@@ -538,11 +538,20 @@ VdbFileEntries checkVdbFileStructure(const std::string& path)
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) return f;
     BoundedReader in(path, uint64_t(st.st_size));
+    // Decoded too (OpenVDB decodes them when it lists the grids), and kept for checkVdbGridData up to
+    // kKeptDelayedBytes in all: a file of many large grids keeps the first ones only, and the grid's
+    // walk decodes the others again.
+    constexpr uint64_t kKeptDelayedBytes = uint64_t(64) << 20;
+    uint64_t kept = 0;
     for (GridEntry& e : f.grids) {
         uint32_t compression = 0;
-        auto delayed = std::make_shared<DelayedLoadSizes>();  // decoded too: OpenVDB decodes it when it lists the grids
+        auto delayed = std::make_shared<DelayedLoadSizes>();
         walkGridHeader(path, in, e, compression, delayed.get());
-        if (delayed->present) e.delayed = std::move(delayed);
+        const uint64_t bytes = delayed->codes.size() + delayed->sizes.size() * sizeof(int64_t);
+        if (delayed->present && kept + bytes <= kKeptDelayedBytes) {
+            kept += bytes;
+            e.delayed = std::move(delayed);
+        }
     }
     return f;
 }

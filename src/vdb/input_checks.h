@@ -29,7 +29,7 @@ struct VdbGridEntry {
     std::string parent;      // instance parent (unique name); empty for a grid with its own tree
     uint64_t gridPos = 0, blockPos = 0, endPos = 0;
     bool streamed = false;   // in a file without grid offsets: positions found by walking the grids
-    // Its delayed-load metadata as checkVdbFileStructure decoded it (null: none, or not decoded there),
+    // Its delayed-load metadata as checkVdbFileStructure decoded it (null: none, or not kept there),
     // which checkVdbGridData walks the grid's records with instead of decoding it again.
     std::shared_ptr<const DelayedLoadSizes> delayed;
 };

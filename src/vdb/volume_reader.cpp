@@ -301,10 +301,14 @@ public:
 
     // A block's 9^3 samples come from the up to 8 leaves at its origin and 8 voxels above it along
     // each axis: each is read straight from its buffer (or is one tile value), not voxel by voxel
-    // through the tree.
+    // through the tree. The accessor lives for one block, on a tree nothing restructures meanwhile, so
+    // it is not registered with the tree: a registered one costs an insert and an erase in the tree's
+    // concurrent accessor table per block, and a table grown that way is walked through TBB's
+    // lazy-rehash markers when the tree is destroyed (undefined behaviour to -fsanitize=undefined).
+    using Accessor = typename GridT::ConstUnsafeAccessor;
     void sampleUnchecked(const std::array<int32_t, 3>& origin, BlockSamples& out) const
     {
-        typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        Accessor acc = mGrid->getConstUnsafeAccessor();
         sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
             const LeafT* leaf = acc.probeConstLeaf(at);
             return leaf ? leaf->buffer().data() : nullptr;
@@ -319,7 +323,7 @@ public:
     template <typename Copied, typename Read>
     void sampleCopies(const std::array<int32_t, 3>& origin, BlockSamples& out, Copied copied, Read read) const
     {
-        typename GridT::ConstAccessor acc = mGrid->getConstAccessor();
+        Accessor acc = mGrid->getConstUnsafeAccessor();
         sampleLeaves(origin, out, acc, [&](const openvdb::Coord& at) -> const ValueT* {
             const LeafT* leaf = mGrid->tree().probeConstLeaf(at);
             if (!leaf) return nullptr;
@@ -331,7 +335,7 @@ public:
     // The same with the voxels `valuesAt` gives for the leaf at a coordinate (null: a tile there,
     // read through `acc`).
     template <typename ValuesAt>
-    void sampleLeaves(const std::array<int32_t, 3>& origin, BlockSamples& out, typename GridT::ConstAccessor& acc,
+    void sampleLeaves(const std::array<int32_t, 3>& origin, BlockSamples& out, Accessor& acc,
                       ValuesAt valuesAt) const
     {
         out.origin = origin;
