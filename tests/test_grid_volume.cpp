@@ -41,6 +41,18 @@ uint64_t fullestLeafLayer(const openvdb::GridBase& grid)
     return most;
 }
 
+// A file's volume, its leaves kept and read from the file, samples every block as the grid read whole does.
+void expectSameSamples(vi::Volume& fromFile, const vi::Volume& inMemory, const std::vector<vi::BlockOrigin>& blocks)
+{
+    fromFile.keepLeaves({});
+    vi::BlockSamples s1, s2;
+    for (const auto& o : blocks) {
+        fromFile.sample(o, s1);
+        inMemory.sample(o, s2);
+        ASSERT_EQ(s1.values, s2.values);
+    }
+}
+
 void expectSameVolume(openvdb::FloatGrid::Ptr grid, const std::string& name)
 {
     grid->setName(name);
@@ -168,13 +180,7 @@ TEST(FileVolume, ReadsEveryStoredFormatAsOpenVDBLoadsIt)
             c.iso = c.insideBelow ? 0.0 : 0.5;
             const auto blocks = fromFile->blocks(c);
             ASSERT_FALSE(blocks.empty());
-            fromFile->keepLeaves({});
-            vi::BlockSamples s1, s2;
-            for (const auto& o : blocks) {
-                fromFile->sample(o, s1);
-                inMemory->sample(o, s2);
-                ASSERT_EQ(s1.values, s2.values);
-            }
+            expectSameSamples(*fromFile, *inMemory, blocks);
             ++grids;
         }
     }
@@ -226,13 +232,7 @@ TEST(FileVolume, ReadsTheTopologyOfManyNodesAsOpenVDBDoes)
             EXPECT_EQ(fromFile->tileShellBlocks(c), inMemory->tileShellBlocks(c));
             const auto blocks = fromFile->blocks(c);
             ASSERT_EQ(blocks, inMemory->blocks(c));
-            fromFile->keepLeaves({});
-            vi::BlockSamples s1, s2;
-            for (const auto& o : blocks) {
-                fromFile->sample(o, s1);
-                inMemory->sample(o, s2);
-                ASSERT_EQ(s1.values, s2.values);
-            }
+            expectSameSamples(*fromFile, *inMemory, blocks);
         }
 }
 
