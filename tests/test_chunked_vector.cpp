@@ -1,12 +1,14 @@
 // The decimator's chunked arrays (core/chunked_vector.h): chunks let go of by one array and filled
-// again by another, and the process-wide pool of freed chunks (core/chunk_pool.h).
+// again by another, and the process-wide pool of chunk slots in huge-page regions (core/chunk_pool.h).
 #include "core/chunk_pool.h"
 #include "core/chunked_vector.h"
 #include "core/quad_heap.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <vector>
 
 namespace vdb_isosimp {
 namespace {
@@ -46,60 +48,95 @@ TEST(ChunkedVector, AChunkLetGoIsFilledAgainByTheNextArray)
     EXPECT_EQ(copy.size(), 0u);
 }
 
-TEST(ChunkPool, AFreedChunkWaitsForTheNextOfItsSizeUpToTheCap)
+TEST(ChunkPool, AFreedSlotIsTheNextOfItsSizeHandedOutAndAnEmptyRegionIsUnmapped)
 {
-    ChunkPool::release();
-    const size_t big = ChunkPool::kMinBytes, align = 64;
+    const size_t mapped = ChunkPool::mappedBytes(), idle = ChunkPool::idleBytes();
+    const size_t big = size_t(128) << 10, align = 64;
+    void* keep = ChunkPool::allocate(big, align);
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(keep) % align, 0u);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + kHugePage);  // 16 slots of 128 KiB
+    EXPECT_EQ(ChunkPool::idleBytes(), idle + 15 * big);
+    // A slot let go of is the next one handed out; another size takes a region of its own.
     void* a = ChunkPool::allocate(big, align);
+    EXPECT_NE(a, keep);
     ChunkPool::free(a, big, align);
-    EXPECT_EQ(ChunkPool::cachedBytes(), big);
-    // Another size or alignment does not take it; the same size does.
-    void* other = ChunkPool::allocate(2 * big, align);
-    EXPECT_NE(other, a);
-    void* odd = ChunkPool::allocate(big, 16);
-    EXPECT_NE(odd, a);
     EXPECT_EQ(ChunkPool::allocate(big, align), a);
-    EXPECT_EQ(ChunkPool::cachedBytes(), 0u);
+    void* other = ChunkPool::allocate(2 * big, align);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + 2 * kHugePage);
+    // Small chunks are glibc's.
+    void* small = ChunkPool::allocate(ChunkPool::kMinBytes / 2, align);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + 2 * kHugePage);
+    ChunkPool::free(small, ChunkPool::kMinBytes / 2, align);
+    // Filling a region maps the next; every slot is writable and none overlaps another.
+    std::vector<char*> slots;
+    for (int k = 0; k < 30; ++k) {
+        slots.push_back(static_cast<char*>(ChunkPool::allocate(big, align)));
+        std::fill(slots.back(), slots.back() + big, char(k));
+    }
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + 3 * kHugePage);  // 32 slots of 128 KiB: two regions
+    for (int k = 0; k < 30; ++k) {
+        EXPECT_EQ(slots[k][0], char(k));
+        EXPECT_EQ(slots[k][big - 1], char(k));
+    }
+    for (char* s : slots) ChunkPool::free(s, big, align);
     ChunkPool::free(a, big, align);
     ChunkPool::free(other, 2 * big, align);
-    ChunkPool::free(odd, big, 16);
-    EXPECT_EQ(ChunkPool::cachedBytes(), 4 * big);
-    // Small chunks are glibc's to reuse: none waits.
-    void* small = ChunkPool::allocate(big / 2, align);
-    ChunkPool::free(small, big / 2, align);
-    EXPECT_EQ(ChunkPool::cachedBytes(), 4 * big);
-    // Never more than the cap waits, however many are freed at once.
-    std::vector<void*> many;
-    for (size_t k = 0; k < 2 * ChunkPool::kMaxCachedBytes / big; ++k) many.push_back(ChunkPool::allocate(big, 32));
-    for (void* p : many) ChunkPool::free(p, big, 32);
-    EXPECT_LE(ChunkPool::cachedBytes(), ChunkPool::kMaxCachedBytes);
-    EXPECT_GT(ChunkPool::cachedBytes(), ChunkPool::kMaxCachedBytes - big);
-    ChunkPool::release();
-    EXPECT_EQ(ChunkPool::cachedBytes(), 0u);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + kHugePage);  // `keep` holds the first region
+    ChunkPool::free(keep, big, align);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped);
+    EXPECT_EQ(ChunkPool::idleBytes(), idle);
+}
+
+TEST(ChunkPool, PooledVectorsTakeSlotsOfAFewSizesOrMappingsOfTheirOwn)
+{
+    const size_t mapped = ChunkPool::mappedBytes();
+    PooledVector<uint32_t> keep(70000);  // 280 KiB: a slot of 512 KiB
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + kHugePage);
+    const uint32_t* first = nullptr;
+    {
+        PooledVector<uint32_t> v(100000, 7u);  // 400 KiB: the same size of slot
+        first = v.data();
+        EXPECT_EQ(reinterpret_cast<uintptr_t>(first) % (size_t(512) << 10), 0u);
+    }
+    // The next array of that size of slot takes the one let go of, its elements initialised anew.
+    PooledVector<uint32_t> w(120000);
+    EXPECT_EQ(w.data(), first);
+    EXPECT_EQ(w[0], 0u);
+    EXPECT_EQ(w[119999], 0u);
+    // Small arrays come from the heap, large ones are mappings of whole huge pages outside the pool.
+    PooledVector<uint8_t> small(1000, 1);
+    PooledVector<uint8_t> large(3 << 20, 1);
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(large.data()) % kHugePage, 0u);
+    EXPECT_EQ(ChunkPool::mappedBytes(), mapped + kHugePage);
+    EXPECT_EQ(size_t(std::count(large.begin(), large.end(), uint8_t(1))), large.size());
 }
 
 TEST(ChunkPool, ArraysAndQueuesReuseFreedChunksAsFreshOnes)
 {
-    ChunkPool::release();
     using Array = ChunkedVector<Record, 14>;  // 16384 records of 16 bytes: 256 KiB chunks, pooled
-    const Record* firstChunk = nullptr;
+    Array holder;
+    holder.emplace_back();  // keeps a region of 256 KiB slots mapped
+    const size_t idle = ChunkPool::idleBytes();
+    std::vector<const Record*> chunks;
     {
         Array a;
         for (uint32_t i = 0; i < 20000; ++i) a.emplace_back() = {2.5, i + 1};
-        firstChunk = &a[0];
         Array copy(a);  // a deep copy takes chunks of its own
-        EXPECT_NE(&copy[0], firstChunk);
+        EXPECT_NE(&copy[0], &a[0]);
         EXPECT_EQ(copy[19999].id, 20000u);
+        EXPECT_EQ(ChunkPool::idleBytes(), idle - 4 * Array::kChunk * sizeof(Record));
+        chunks = {&a[0], &a[Array::kChunk], &copy[0], &copy[Array::kChunk]};
     }
-    EXPECT_EQ(ChunkPool::cachedBytes(), 4 * Array::kChunk * sizeof(Record));
-    // A new array takes a waiting chunk; what it appends is value-initialised, not the old content.
+    EXPECT_EQ(ChunkPool::idleBytes(), idle);
+    // A new array takes a slot let go of; what it appends is value-initialised, not the old content.
     Array b;
     for (uint32_t i = 0; i < 3; ++i) {
         const Record& r = b.emplace_back();
         EXPECT_EQ(r.id, 0u);
         EXPECT_EQ(r.x, 0.0);
     }
-    EXPECT_EQ(ChunkPool::cachedBytes(), 3 * Array::kChunk * sizeof(Record));
+    EXPECT_NE(std::find(chunks.begin(), chunks.end(), &b[0]), chunks.end());
+    EXPECT_EQ(ChunkPool::idleBytes(), idle - Array::kChunk * sizeof(Record));
     // The queue's chunks (256 KiB, cache-line aligned) come and go through the same pool, and a queue
     // on reused chunks still pops in order.
     struct Entry {
@@ -107,21 +144,16 @@ TEST(ChunkPool, ArraysAndQueuesReuseFreedChunksAsFreshOnes)
         uint32_t a, b, c;
         bool operator<(const Entry& o) const { return key < o.key; }
     };
-    ChunkPool::release();
     {
         QuadHeap<Entry> q;
         for (uint32_t i = 0; i < 40000; ++i) q.push({float((i * 7919u) % 40000u), i, 0, 0});
     }
-    const size_t cached = ChunkPool::cachedBytes();
-    EXPECT_GT(cached, 0u);
     QuadHeap<Entry> q;
     for (uint32_t i = 0; i < 40000; ++i) q.push({float((i * 104729u) % 40000u), i, 0, 0});
-    EXPECT_LT(ChunkPool::cachedBytes(), cached);
     for (uint32_t i = 0; i < 40000; ++i) {
         ASSERT_EQ(q.top().key, float(i));
         q.pop();
     }
-    ChunkPool::release();
 }
 
 } // namespace

@@ -628,9 +628,9 @@ private:
     Decimator& mDec;
     ChunkedVector<VertexGeom>::Spares* mGeomSpares;
     QuadHeap<Candidate>* mHeapInto;
-    std::vector<uint32_t> mDense;  // per slot: the vertex's number here, kNone if dead
-    std::vector<uint32_t> mIds;    // per number: the slot
-    std::vector<Renumbered> mQueueable;
+    PooledVector<uint32_t> mDense;  // per slot: the vertex's number here, kNone if dead
+    PooledVector<uint32_t> mIds;    // per number: the slot
+    PooledVector<Renumbered> mQueueable;
     uint32_t mReleased = 0;
 };
 
@@ -714,7 +714,7 @@ template <typename Source>
 void Decimator::absorbFrom(Source& from)
 {
     const size_t n = from.vertexCount();
-    std::vector<uint32_t> remap(n, UINT32_MAX);
+    PooledVector<uint32_t> remap(n, UINT32_MAX);
     // Both open lists in key order, walked together into the merged one.
     seal();
     const std::vector<std::pair<EdgeKey, uint32_t>> theirOpen = from.takeOpen();
@@ -764,7 +764,7 @@ void Decimator::absorbFrom(Source& from)
     // Queued edges carry over with their costs (the quadrics of both ends are unchanged), so the final
     // pass needs no full requeue; welded seam vertices queue their edges when they are finalised.
     // Each piece vertex's number here and its version, side by side for the queue's random reads.
-    std::vector<std::pair<uint32_t, uint32_t>> renumbered(n);
+    PooledVector<std::pair<uint32_t, uint32_t>> renumbered(n);
     for (uint32_t v = 0; v < n; ++v) renumbered[v] = {remap[v], mMeta[remap[v]].version};
     // The other side's queue lacks its edges above its bar: this one drops its own from there too,
     // and lists them all again when it needs them.
@@ -1315,7 +1315,7 @@ size_t Decimator::removeDegenerateFaces()
     // A face's corners lie anywhere in the vertex array of a merged mesh: the corner records of the
     // face kScanAhead places on start loading while this one is checked (docs/perf.md).
     constexpr uint32_t kScanAhead = 16;
-    std::vector<uint8_t> flat(mFaces.size(), 0);
+    PooledVector<uint8_t> flat(mFaces.size(), 0);
     const Stopwatch scan;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(mFaces.size()), 4096), [&](const tbb::blocked_range<uint32_t>& r) {
         for (uint32_t f = r.begin(); f != r.end(); ++f) {
@@ -1384,7 +1384,7 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     const uint32_t slots = uint32_t(mMeta.size());
     // What stays: rings around the open vertices, the seam just closed and every face that is or may
     // become zero-area.
-    std::vector<uint8_t> near(slots, 0);
+    PooledVector<uint8_t> near(slots, 0);
     std::vector<uint32_t> frontier, next;
     const auto keep = [&](uint32_t v) {
         if (!near[v]) {
@@ -1418,13 +1418,13 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     next = {};
     // Components by union-find: small ones stay whole (dropSmallComponents, pruneComponents); one with
     // a pinned vertex has retired faces already (so the live faces are all this needs to join).
-    const std::vector<uint32_t> roots = componentRoots(false);
+    const PooledVector<uint32_t> roots = componentRoots(false);
     const auto find = [&](uint32_t v) { return roots[v]; };
     struct Size {
         uint64_t faces = 0;
         double area = 0;
     };
-    std::vector<Size> size(roots.size());
+    PooledVector<Size> size(roots.size());
     const bool areas = minComponentArea > 0;  // a bound of 0 passes any area, 0 included
     for (const Face& f : mFaces)
         if (f.alive()) {
@@ -1439,7 +1439,7 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
         return c.faces == UINT64_MAX || (c.faces >= kRetireComponentFaces && c.area >= minComponentArea);
     };
     // Faces in slot order, their corners numbered as they first appear (a pinned one has its number).
-    std::vector<uint32_t> at(slots, kNone);
+    PooledVector<uint32_t> at(slots, kNone);
     for (const auto& [v, i] : mPinnedAt) at[v] = i;
     std::vector<uint32_t> corners;
     size_t retired = 0;
@@ -1486,12 +1486,12 @@ size_t Decimator::retireInterior(size_t rings, double minComponentArea)
     return retired;
 }
 
-std::vector<uint32_t> Decimator::componentRoots(bool withRetired) const
+PooledVector<uint32_t> Decimator::componentRoots(bool withRetired) const
 {
     // Union-find over the vertices of live faces and, withRetired, the points of retired faces, which
     // the pinned vertices join.
     const uint32_t slots = uint32_t(mMeta.size());
-    std::vector<uint32_t> parent(slots + (withRetired ? mRetired.points.size() : 0));
+    PooledVector<uint32_t> parent(slots + (withRetired ? mRetired.points.size() : 0));
     for (uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
     const auto find = [&](uint32_t v) {
         while (parent[v] != v) v = parent[v] = parent[parent[v]];
@@ -1513,9 +1513,9 @@ std::vector<uint32_t> Decimator::componentRoots(bool withRetired) const
 
 std::vector<Decimator::Component> Decimator::componentsByArea() const
 {
-    const std::vector<uint32_t> roots = componentRoots(true);
+    const PooledVector<uint32_t> roots = componentRoots(true);
     const uint32_t slots = uint32_t(mMeta.size());
-    std::vector<int64_t> index(roots.size(), -1);
+    PooledVector<int64_t> index(roots.size(), -1);
     std::vector<Component> comps;
     const auto component = [&](uint32_t root, uint64_t first) -> Component& {
         if (index[root] < 0) {
@@ -1560,10 +1560,10 @@ void Decimator::dropComponent(const Component& c, std::vector<uint32_t>& retired
 void Decimator::dropRetired(const std::vector<uint32_t>& gone)
 {
     if (gone.empty()) return;
-    std::vector<uint8_t> stays(mRetired.triangles.size(), 1);
+    PooledVector<uint8_t> stays(mRetired.triangles.size(), 1);
     for (uint32_t i : gone) stays[i] = 0;
     const size_t points = mRetired.points.size();
-    std::vector<uint32_t> renumber(points, kNone);
+    PooledVector<uint32_t> renumber(points, kNone);
     for (uint32_t i = 0; i < stays.size(); ++i)
         if (stays[i])
             for (uint32_t p : mRetired.triangles[i]) renumber[p] = 0;
@@ -1661,7 +1661,7 @@ void Decimator::requeueForgotten()
     // Every edge again at its cost now, but the refused pairs: they wait for their faces to change.
     // What the dropped entries would have given: a dead one nothing, a stale one its edge at today's
     // cost, and a current one the same entry.
-    std::vector<uint64_t> refused(mRefused.size());
+    PooledVector<uint64_t> refused(mRefused.size());
     for (size_t i = 0; i < mRefused.size(); ++i) refused[i] = uint64_t(mRefused[i].a) << 32 | mRefused[i].b;
     std::sort(refused.begin(), refused.end());
     mHeap.clear();
@@ -1752,9 +1752,6 @@ Mesh Decimator::takeMesh()
     mFreeFaces = {};
     mDrift = {};
     mAttrQ = {};
-    // The output's arrays, which are not chunks, come next, at the run's peak: no freed chunk waits for
-    // reuse meanwhile.
-    ChunkPool::release();
     const Stopwatch collection;
     // Exactly the output's size (a vector grown past its capacity holds both copies while it moves),
     // the retired part first, freed as it is copied. Its chunks go back to the heap, not to the system,
@@ -1763,6 +1760,9 @@ Mesh Decimator::takeMesh()
     Mesh m;
     m.points.reserve(mRetired.points.size() + mVertexCount - mPinnedAt.size());
     m.triangles.reserve(mFaceCount);
+    // Written once, in order: in huge pages, a fault for every 2 MiB instead of every 4 KiB.
+    adviseHugePages(m.points.data(), m.points.capacity() * sizeof(m.points[0]));
+    adviseHugePages(m.triangles.data(), m.triangles.capacity() * sizeof(m.triangles[0]));
     constexpr size_t kTrimEvery = size_t(1) << 20;  // records of 12 bytes
     const auto moveOut = [](auto& from, auto& to) {
         drainInRuns(from, [](const auto&) {}, [&](const auto& x) {

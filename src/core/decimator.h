@@ -391,7 +391,7 @@ private:
     std::vector<Component> componentsByArea() const;
     // A representative of each one's component: per vertex slot, then, `withRetired`, per retired
     // point (at the slots' count plus its number), joined to the live part by the pinned vertices.
-    std::vector<uint32_t> componentRoots(bool withRetired) const;
+    PooledVector<uint32_t> componentRoots(bool withRetired) const;
     // Removes c's live faces and vertices; its retired faces are counted out here and appended to
     // `retiredGone`, for dropRetired once every component is dropped.
     void dropComponent(const Component& c, std::vector<uint32_t>& retiredGone);
@@ -415,7 +415,7 @@ private:
     ChunkedVector<VertexGeom>::Spares mGeomSpares;  // during absorb(Decimator&&): the other side's read chunks
     ChunkedVector<VertexMeta> mMeta;
     ChunkedVector<Face> mFaces;
-    std::vector<uint32_t> mFreeVerts, mFreeFaces;
+    PooledVector<uint32_t> mFreeVerts, mFreeFaces;
     std::unordered_map<EdgeKey, uint32_t> mOpen;  // frontier: vertices not final yet, by edge key
     std::vector<std::pair<EdgeKey, uint32_t>> mSealedOpen;  // the same once sealed (seal()), sorted
     bool mSealed = false;

@@ -6,7 +6,6 @@
 //      MPI ranks, each rank's subtree travels to its parent's rank) -> final decimation.
 #include "vdb_isosimp/vdb_isosimp.h"
 
-#include "core/chunk_pool.h"
 #include "core/decimator.h"
 #include "core/edge_key.h"
 #include "core/marching_cubes.h"
@@ -918,10 +917,6 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
 Result simplifyVolume(const VolumeOpener& open, const std::string& name, const Options& opt, Progress* progress,
                       RankChannel* ranks)
 {
-    // The chunks a run's decimators let go of wait for that run's next chunks, not for the next run.
-    struct ReleaseChunks {
-        ~ReleaseChunks() { ChunkPool::release(); }
-    } releaseChunks;
     // Every input error names the input, whichever stage found it.
     try {
         // A thread count applies to this run only: an arena of its own, not a process-wide limit
