@@ -50,6 +50,7 @@ TEST(ChunkedVector, AChunkLetGoIsFilledAgainByTheNextArray)
 
 TEST(ChunkPool, AFreedSlotIsTheNextOfItsSizeHandedOutAndAnEmptyRegionIsUnmapped)
 {
+    if (!kChunksInRegions) GTEST_SKIP() << "under AddressSanitizer every chunk is a heap block";
     const size_t mapped = ChunkPool::mappedBytes(), idle = ChunkPool::idleBytes();
     const size_t big = size_t(128) << 10, align = 64;
     void* keep = ChunkPool::allocate(big, align);
@@ -89,6 +90,7 @@ TEST(ChunkPool, AFreedSlotIsTheNextOfItsSizeHandedOutAndAnEmptyRegionIsUnmapped)
 
 TEST(ChunkPool, PooledVectorsTakeSlotsOfAFewSizesOrMappingsOfTheirOwn)
 {
+    if (!kChunksInRegions) GTEST_SKIP() << "under AddressSanitizer every chunk is a heap block";
     const size_t mapped = ChunkPool::mappedBytes();
     PooledVector<uint32_t> keep(70000);  // 280 KiB: a slot of 512 KiB
     EXPECT_EQ(ChunkPool::mappedBytes(), mapped + kHugePage);
@@ -113,6 +115,7 @@ TEST(ChunkPool, PooledVectorsTakeSlotsOfAFewSizesOrMappingsOfTheirOwn)
 
 TEST(ChunkPool, ArraysAndQueuesReuseFreedChunksAsFreshOnes)
 {
+    if (!kChunksInRegions) GTEST_SKIP() << "under AddressSanitizer every chunk is a heap block";
     using Array = ChunkedVector<Record, 14>;  // 16384 records of 16 bytes: 256 KiB chunks, pooled
     Array holder;
     holder.emplace_back();  // keeps a region of 256 KiB slots mapped

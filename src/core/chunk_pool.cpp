@@ -78,7 +78,7 @@ Region* mapRegion(size_t slotBytes, size_t bytes)
 // A slot at a multiple of its size from a huge page's boundary is aligned to `align`.
 bool pooled(size_t bytes, size_t align)
 {
-    return bytes >= ChunkPool::kMinBytes && bytes <= kHugePage && bytes % align == 0 && kHugePage % align == 0;
+    return kChunksInRegions && bytes >= ChunkPool::kMinBytes && bytes <= kHugePage && bytes % align == 0 && kHugePage % align == 0;
 }
 
 } // namespace

@@ -13,7 +13,23 @@
 #include <new>
 #include <vector>
 
+// Under AddressSanitizer every chunk and array is a heap block of its own, so that it sees each one's
+// bounds and lifetime; the regions would hide them.
+#if defined(__SANITIZE_ADDRESS__)
+#define VDB_ISOSIMP_HEAP_CHUNKS 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define VDB_ISOSIMP_HEAP_CHUNKS 1
+#endif
+#endif
+
 namespace vdb_isosimp {
+
+#ifdef VDB_ISOSIMP_HEAP_CHUNKS
+constexpr bool kChunksInRegions = false;
+#else
+constexpr bool kChunksInRegions = true;
+#endif
 
 class ChunkPool {
 public:
@@ -50,14 +66,14 @@ struct PoolAllocator {
     T* allocate(size_t n)
     {
         const size_t bytes = n * sizeof(T);
-        if (bytes < kPooledFrom) return static_cast<T*>(::operator new(bytes));
+        if (bytes < kPooledFrom || !kChunksInRegions) return static_cast<T*>(::operator new(bytes));
         if (bytes > kMappedFrom) return static_cast<T*>(mapHugePages(rounded(bytes)));
         return static_cast<T*>(ChunkPool::allocate(rounded(bytes), kAlign));
     }
     void deallocate(T* p, size_t n) noexcept
     {
         const size_t bytes = n * sizeof(T);
-        if (bytes < kPooledFrom) ::operator delete(p);
+        if (bytes < kPooledFrom || !kChunksInRegions) ::operator delete(p);
         else if (bytes > kMappedFrom) unmapHugePages(p, rounded(bytes));
         else ChunkPool::free(p, rounded(bytes), kAlign);
     }
