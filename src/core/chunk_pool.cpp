@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <new>
 #include <vector>
@@ -64,15 +65,22 @@ Pool& pool()
     return *p;
 }
 
-Region* mapRegion(size_t slotBytes, size_t bytes)
+// A new region, listed in the pool's map; nothing is left mapped or allocated if any step throws.
+Region* mapRegion(Pool& p, size_t slotBytes, size_t bytes)
 {
-    Region* r = new Region;
-    r->base = static_cast<char*>(mapHugePages(bytes));
+    auto r = std::make_unique<Region>();
     r->bytes = bytes;
     r->slotBytes = slotBytes;
     r->slots = uint32_t(bytes / slotBytes);
     r->freed.reserve(r->slots);
-    return r;
+    r->base = static_cast<char*>(mapHugePages(bytes));
+    try {
+        p.regions.emplace(r->base, r.get());
+    } catch (...) {
+        unmapHugePages(r->base, bytes);
+        throw;
+    }
+    return r.release();
 }
 
 // A slot at a multiple of its size from a huge page's boundary is aligned to `align`.
@@ -96,8 +104,7 @@ void* ChunkPool::allocate(size_t bytes, size_t align)
         c = &p.classes.back();
     }
     if (!c->withRoom) {
-        Region* r = mapRegion(bytes, c->regionBytes);
-        p.regions.emplace(r->base, r);
+        Region* r = mapRegion(p, bytes, c->regionBytes);
         c->add(r);
         p.freeBytes += size_t(r->slots) * bytes;
     }
