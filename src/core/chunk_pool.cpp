@@ -16,8 +16,7 @@ namespace {
 // A mapping of whole huge pages cut into equal slots of one chunk size.
 struct Region {
     char* base = nullptr;
-    size_t bytes = 0;      // the mapping, a multiple of kHugePage
-    size_t slotBytes = 0;
+    size_t bytes = 0;  // the mapping, a multiple of kHugePage
     uint32_t slots = 0, fresh = 0, used = 0;  // slots never handed out start at `fresh`
     std::vector<uint32_t> freed;              // room for every slot: listing one never allocates
     Region *prev = nullptr, *next = nullptr;  // in its size's list of regions with room
@@ -25,7 +24,6 @@ struct Region {
 
 struct SizeClass {
     size_t slotBytes = 0;
-    size_t regionBytes = 0;
     Region* withRoom = nullptr;  // the regions with a slot not in use, the latest first
 
     void add(Region* r)
@@ -65,19 +63,27 @@ Pool& pool()
     return *p;
 }
 
+// The size's list of regions, made at its first chunk.
+SizeClass& sizeClass(Pool& p, size_t slotBytes)
+{
+    for (SizeClass& c : p.classes)
+        if (c.slotBytes == slotBytes) return c;
+    p.classes.push_back({slotBytes, nullptr});
+    return p.classes.back();
+}
+
 // A new region, listed in the pool's map; nothing is left mapped or allocated if any step throws.
-Region* mapRegion(Pool& p, size_t slotBytes, size_t bytes)
+Region* mapRegion(Pool& p, size_t slotBytes)
 {
     auto r = std::make_unique<Region>();
-    r->bytes = bytes;
-    r->slotBytes = slotBytes;
-    r->slots = uint32_t(bytes / slotBytes);
+    r->bytes = regionBytesFor(slotBytes);
+    r->slots = uint32_t(r->bytes / slotBytes);
     r->freed.reserve(r->slots);
-    r->base = static_cast<char*>(mapHugePages(bytes));
+    r->base = static_cast<char*>(mapHugePages(r->bytes));
     try {
         p.regions.emplace(r->base, r.get());
     } catch (...) {
-        unmapHugePages(r->base, bytes);
+        unmapHugePages(r->base, r->bytes);
         throw;
     }
     return r.release();
@@ -96,19 +102,13 @@ void* ChunkPool::allocate(size_t bytes, size_t align)
     if (!pooled(bytes, align)) return ::operator new(bytes, std::align_val_t(align));
     Pool& p = pool();
     std::lock_guard<std::mutex> lock(p.mutex);
-    SizeClass* c = nullptr;
-    for (SizeClass& s : p.classes)
-        if (s.slotBytes == bytes) c = &s;
-    if (!c) {
-        p.classes.push_back({bytes, regionBytesFor(bytes), {}});
-        c = &p.classes.back();
-    }
-    if (!c->withRoom) {
-        Region* r = mapRegion(p, bytes, c->regionBytes);
-        c->add(r);
+    SizeClass& c = sizeClass(p, bytes);
+    if (!c.withRoom) {
+        Region* r = mapRegion(p, bytes);
+        c.add(r);
         p.freeBytes += size_t(r->slots) * bytes;
     }
-    Region* r = c->withRoom;
+    Region* r = c.withRoom;
     uint32_t slot;
     if (!r->freed.empty()) {
         slot = r->freed.back();
@@ -118,7 +118,7 @@ void* ChunkPool::allocate(size_t bytes, size_t align)
     }
     ++r->used;
     p.freeBytes -= bytes;
-    if (r->used == r->slots) c->remove(r);
+    if (r->used == r->slots) c.remove(r);
     return r->base + size_t(slot) * bytes;
 }
 
@@ -135,15 +135,13 @@ void ChunkPool::free(void* chunk, size_t bytes, size_t align) noexcept
     auto it = p.regions.upper_bound(c);
     --it;
     Region* r = it->second;
-    SizeClass* s = nullptr;
-    for (SizeClass& x : p.classes)
-        if (x.slotBytes == bytes) s = &x;
-    if (r->used == r->slots) s->add(r);
+    SizeClass& s = sizeClass(p, bytes);  // listed since the chunk's allocation: no allocation here
+    if (r->used == r->slots) s.add(r);
     r->freed.push_back(uint32_t(size_t(c - r->base) / bytes));
     --r->used;
     p.freeBytes += bytes;
     if (r->used == 0) {
-        s->remove(r);
+        s.remove(r);
         p.freeBytes -= size_t(r->slots) * bytes;
         unmapHugePages(r->base, r->bytes);
         p.regions.erase(it);

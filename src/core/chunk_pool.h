@@ -1,7 +1,7 @@
 // Memory for the decimator's arrays and queues: the chunks of ChunkedVector and QuadHeap, and the
 // arrays of one entry per vertex or face that every join builds and drops (PooledVector).
 // A run lets go of and takes again hundreds of megabytes of these: fresh memory is a page fault on the
-// first touch of every 4 KiB page, which costs about 14 us on the virtual machines these runs are
+// first touch of every 4 KiB page, which costs about 13 us on the virtual machines these runs are
 // measured on (docs/perf.md). So chunks of kMinBytes or more are slots of equal size in 2 MiB-aligned
 // regions that ask for transparent huge pages (core/huge_pages.h): one fault maps 2 MiB, and a slot let
 // go of is the next one handed out in its region, without a fault. A region is unmapped once none of

@@ -1754,9 +1754,9 @@ Mesh Decimator::takeMesh()
     mAttrQ = {};
     const Stopwatch collection;
     // Exactly the output's size (a vector grown past its capacity holds both copies while it moves),
-    // the retired part first, freed as it is copied. Its chunks go back to the heap, not to the system,
-    // while the output's arrays take fresh pages: the heap's free pages are handed back every few
-    // megabytes copied.
+    // the retired part first, freed as it is copied. Its chunks go back to the pool, whose regions are
+    // unmapped as they empty; what the heap holds free meanwhile (every chunk, under AddressSanitizer)
+    // is handed back every few megabytes copied.
     Mesh m;
     m.points.reserve(mRetired.points.size() + mVertexCount - mPinnedAt.size());
     m.triangles.reserve(mFaceCount);
