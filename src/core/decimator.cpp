@@ -1168,7 +1168,9 @@ size_t Decimator::decimateRegionByRegion(size_t targetFaces, size_t regions)
         if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
     // Region boundaries at quantiles of the vertices, not of the extent: each region then removes a
     // share in proportion to its faces (a region of equal width but sparse surface would lose its detail).
-    std::vector<double> along;
+    // The temporaries are pool slots: a LOD chain splits every slab's copy like this, and arrays from
+    // the heap were mapped and faulted in afresh each time (docs/perf.md).
+    PooledVector<double> along;
     along.reserve(mVertexCount);
     for (uint32_t v = 0; v < mMeta.size(); ++v)
         if (mMeta[v].alive) along.push_back(mGeom[v].p[axis]);
@@ -1176,18 +1178,30 @@ size_t Decimator::decimateRegionByRegion(size_t targetFaces, size_t regions)
     std::vector<double> bounds;
     for (size_t r = 1; r < regions; ++r) bounds.push_back(along[along.size() * r / regions]);
     along = {};
-    const auto regionOf = [&](uint32_t v) {
-        return size_t(std::upper_bound(bounds.begin(), bounds.end(), mGeom[v].p[axis]) - bounds.begin());
-    };
-    std::vector<std::vector<Candidate>> waiting(regions);
-    mHeap.drain([&](const Candidate& c) {
-        if (liveFinalPair(c.a(), c.b)) waiting[std::max(regionOf(c.a()), regionOf(c.b))].push_back(c);
+    // Each live vertex's region, looked up once: the queue's entries then read this table, not the
+    // positions of their ends.
+    PooledVector<uint32_t> regionOf(mMeta.size());
+    for (uint32_t v = 0; v < mMeta.size(); ++v)
+        if (mMeta[v].alive)
+            regionOf[v] = uint32_t(std::upper_bound(bounds.begin(), bounds.end(), mGeom[v].p[axis]) - bounds.begin());
+    const auto regionOfPair = [&](const Candidate& c) { return std::max(regionOf[c.a()], regionOf[c.b]); };
+    // The entries ordered by region, each region's in queue order (a counting sort): region r's are
+    // waiting[first[r], first[r + 1]).
+    PooledVector<size_t> first(regions + 1);
+    mHeap.visit([&](const Candidate& c) {
+        if (liveFinalPair(c.a(), c.b)) ++first[regionOfPair(c) + 1];
     });
+    for (size_t r = 0; r < regions; ++r) first[r + 1] += first[r];
+    PooledVector<Candidate> waiting(first[regions]);
+    PooledVector<size_t> fill(first.begin(), first.end() - 1);
+    mHeap.drain([&](const Candidate& c) {
+        if (liveFinalPair(c.a(), c.b)) waiting[fill[regionOfPair(c)]++] = c;
+    });
+    regionOf = {};
     const size_t start = mFaceCount, remove = start - targetFaces;
     size_t collapses = 0;
     for (size_t r = 0; r < regions; ++r) {
-        for (const Candidate& c : waiting[r]) mHeap.append(c);
-        waiting[r] = {};
+        for (size_t i = first[r]; i < first[r + 1]; ++i) mHeap.append(waiting[i]);
         collapses += decimateTo(start - remove * (r + 1) / regions);
     }
     return collapses;
