@@ -361,8 +361,8 @@ void Decimator::addBlock(const BlockMesh& block)
     unseal();
     std::vector<uint32_t> ids(block.keys.size());
     // A vertex this block both creates and finalises is never looked up by key again (no other block
-    // has a cell around it), so it skips the frontier map: about two thirds of all vertices, each an
-    // insertion, a node allocation and an erasure less.
+    // has a cell around it), so it skips the frontier map: three vertices in four (noise 160^3: 85k of
+    // 357k insertions remain), each an insertion, a node allocation and an erasure less.
     std::vector<bool> listed(block.keys.size());
     for (size_t i = 0; i < block.keys.size(); ++i) {
         auto it = mOpen.find(block.keys[i]);
