@@ -16,6 +16,7 @@ B=build; W=${PERF_WORK:-$(mktemp -d)}; mkdir -p "$W"
 [ -z "${PERF_WORK:-}" ] && trap 'rm -rf "$W"' EXIT
 SVG=${SVG:-docs/scale.svg}
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+RANKS=16  # the many-rank run whose messages the model's transfers are fitted to
 field() { sed -n "s/.*\"$1\": *\([0-9.e+-]*\).*/\1/p" "$2" | head -1; }
 rms() { "$B/mesh_error" "$1" "$2" --json | tr -d '\n' | sed -n 's/.*"a_to_b": *{[^}]*"rms_pct": *\([0-9.e+-]*\).*/\1/p'; }
 timed() { /usr/bin/time -f "%e %M" -o "$W/time.txt" "$@"; read -r SEC KB < "$W/time.txt"; MB=$((KB / 1024)); }
@@ -34,7 +35,9 @@ for R in 0.2 0.02; do
     timed mpirun -np 1 "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n1.ply"; M1=$(minof "$M1" "$SEC")
     timed mpirun -np 2 "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n2.ply" --report "$W/n2_$R.json"; M2=$(minof "$M2" "$SEC")
   done
-  for f in j2 n1 n2; do cmp -s "$W/j1.ply" "$W/$f.ply" || { echo "FAIL: $f wrote other bytes than 1 thread"; exit 1; }; done
+  # The model's messages: 16 ranks send 15 of them, of 5 to 45 slabs (one round: only bytes are read).
+  mpirun -np $RANKS "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n$RANKS.ply" --report "$W/n${RANKS}_$R.json"
+  for f in j2 n1 n2 n$RANKS; do cmp -s "$W/j1.ply" "$W/$f.ply" || { echo "FAIL: $f wrote other bytes than 1 thread"; exit 1; }; done
   echo "noise ${N}^3 R=$R: $(field faces_full "$W/j1_$R.json") -> $(field faces_out "$W/j1_$R.json") faces, $(field slabs "$W/j1_$R.json") slabs, RMS $(rms "$W/full$N.ply" "$W/j1.ply") % (same bytes in all four modes)"
   awk -v t1=$T1 -v t2=$T2 -v m1=$M1 -v m2=$M2 -v rss=$RSS2 'BEGIN {
     printf "  1 thread %.1f s, 2 threads %.1f s (%.2fx); mpirun 1 x 1 %.1f s, 2 x 1 %.1f s (%.2fx); peak RSS (2 threads) %d MB\n", t1, t2, t1/t2, m1, m2, m1/m2, rss }'
@@ -43,14 +46,18 @@ for R in 0.2 0.02; do
     timed "$BASE" "$V" --iso $ISO -r $R -j 2 -q -o "$W/base.ply"
     echo "  BASE: $SEC s, peak RSS $MB MB, RMS $(rms "$W/full$N.ply" "$W/base.ply") %"
   fi
-  MODEL+=("$W/j1_$R.json" "$W1" "noise ${N}^3 R=$R")
+  MODEL+=(--messages "$W/n${RANKS}_$R.json" "$W/j1_$R.json" "$W1" "noise ${N}^3 R=$R")
 done
 if [ "$GYROID" = 1 ]; then
   GV="$W/gyroid-band1024p42.vdb"
   [ -f "$GV" ] || "$B/make_volume" gyroid-band -n 1024 --period 42 -o "$GV" > /dev/null
   timed "$B/vdb_isosimp" "$GV" -f 1000000 -j 2 -q -o "$W/gyroid.ply" --report "$W/gyroid.json"
   echo "gyroid 1024^3: $(field faces_full "$W/gyroid.json") -> $(field faces_out "$W/gyroid.json") faces, $(field slabs "$W/gyroid.json") slabs, 2 threads $SEC s, peak RSS $MB MB"
-  MODEL+=("$W/gyroid.json" "$SEC" "gyroid 250M faces, 1M kept")
+  # Per-node seconds from one thread (no contention between threads), messages from 16 ranks.
+  timed "$B/vdb_isosimp" "$GV" -f 1000000 -j 1 -q -o "$W/gyroid1.ply" --report "$W/gyroid1.json"; GW=$SEC
+  mpirun -np $RANKS "$B/vdb_isosimp" "$GV" -f 1000000 -j 1 -q -o "$W/gyroid$RANKS.ply" --report "$W/gyroid$RANKS.json"
+  for f in gyroid1 gyroid$RANKS; do cmp -s "$W/gyroid.ply" "$W/$f.ply" || { echo "FAIL: $f wrote other bytes than 2 threads"; exit 1; }; done
+  MODEL+=(--messages "$W/gyroid$RANKS.json" "$W/gyroid1.json" "$GW" "gyroid 250M faces, 1M kept")
 fi
 echo
 /usr/bin/python3 benchmarks/scale_model.py "${MODEL[@]}" "$SVG"

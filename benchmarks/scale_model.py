@@ -24,8 +24,12 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
              zero-area scan over every face and the output mesh's collection (seconds_final_parallel) run
              on all of a process's threads: divided among them in the threads' model and the bound, whole
              for ranks of one thread.
-The transfer of a node between ranks is taken at BANDWIDTH bytes/s for MESSAGE_BYTES_PER_FACE bytes per
-output face of the subtree (measured bytes per rank / faces, docs/scale.md).
+The transfer of a node between ranks is taken at BANDWIDTH bytes/s. Its bytes: with --messages, the
+line through the messages of an mpirun run of many ranks on the same volume and options (each rank > 0
+sends its top node to its parent: rank_bytes_sent against that node's slab count, least squares: a
+message carries the subtree's decimated mesh, about proportional to its slabs, and its two open seams at
+full resolution, the same whatever its size); without, MESSAGE_BYTES_PER_FACE bytes per output face of
+the subtree.
 Threads (one process, `-j W`), modelled as pipeline.cpp's localSubtree runs them: the slabs start in order,
 each on the first free thread; the thread that finishes a node's second child joins the node at once and climbs
 on; a thread whose node waits for its sibling takes the next slab. The set-up runs once (the count and the
@@ -45,14 +49,15 @@ Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound,
 the critical paths at 16 workers,
 the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
 and writes an SVG plot.
-Usage: scale_model.py REPORT.json WALL_SECONDS LABEL OUT.svg [REPORT2.json WALL2 LABEL2 ...]
+Usage: scale_model.py [--messages MPI_REPORT.json] REPORT.json WALL_SECONDS LABEL
+                      [[--messages MPI_REPORT2.json] REPORT2.json WALL2 LABEL2 ...] OUT.svg
 """
 import heapq
 import json
 import sys
 
 BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
-MESSAGE_BYTES_PER_FACE = 100.0  # measured at 448^3: 94-114 bytes per output face of the subtree sent (docs/scale.md)
+MESSAGE_BYTES_PER_FACE = 100.0  # without --messages: an upper figure (29-172 measured at 448^3, docs/scale.md)
 # Shares of seconds_blocks, seconds_cut and seconds_check that one thread makes whatever the thread count
 # (Amdahl's serial share, 2 T2 / T1 - 1): from the 1024^3 gyroid's set-up at -j 1 and -j 2 (block list
 # 0.41 -> 0.29 s, cut 0.28 -> 0.175 s, check 0.55 -> 0.39 s: docs/scale.md).
@@ -79,7 +84,36 @@ def split_ranks(l, r, a, b):
     return a + left
 
 
-def model(report, wall, even=False):
+def rank_top_nodes(slabs, ranks):
+    """The node [l, r) that each rank > 0 sends to its parent (pipeline/slabs.cpp, rankNode)."""
+    sent = {}
+
+    def walk(l, r, a, b):
+        if b - a < 2 or r - l < 2:
+            return
+        m = merge_split(l, r)
+        c = split_ranks(l, r, a, b)
+        sent[c] = (m, r)
+        walk(l, m, a, c)
+        walk(m, r, c, b)
+
+    walk(0, slabs, 0, ranks)
+    return sent
+
+
+def message_fit(mpi):
+    """Bytes of a node's message as (fixed, per slab): the least-squares line through the measured ones."""
+    sent = rank_top_nodes(int(mpi["slabs"]), int(mpi["ranks"]))
+    points = [(r - l, mpi["rank_bytes_sent"][k]) for k, (l, r) in sent.items()]
+    n = len(points)
+    mx = sum(x for x, _ in points) / n
+    my = sum(y for _, y in points) / n
+    sxx = sum((x - mx) ** 2 for x, _ in points)
+    slope = sum((x - mx) * (y - my) for x, y in points) / sxx if sxx > 0 else my / mx
+    return max(0.0, my - slope * mx), slope, points
+
+
+def model(report, wall, even=False, messages=None):
     first = report["tree_first_slab"]
     end = report["tree_end_slab"]
     secs = report["tree_seconds"]
@@ -123,7 +157,10 @@ def model(report, wall, even=False):
             return alone, [f"one rank's slabs [{l}, {r}) {alone:.2f} s"]
         m = merge_split(l, r)
         c = split_ranks(l, r, a, b)
-        transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
+        if messages:
+            transfer = (messages[0] + messages[1] * (r - m)) / BANDWIDTH
+        else:
+            transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
         (left, left_path), (right, right_path) = parallel(l, m, a, c, threads), parallel(m, r, c, b, threads)
         seconds, below = (left, left_path) if left >= right + transfer else (right + transfer, right_path)
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
@@ -253,14 +290,32 @@ def svg(curves, path):
 
 
 def main(argv):
-    if len(argv) < 5 or (len(argv) - 2) % 3:
+    args, groups, messages = argv[1:-1], [], None
+    while args:
+        if args[0] == "--messages" and len(args) > 1:
+            messages, args = args[1], args[2:]
+            continue
+        if len(args) < 3:
+            sys.exit(__doc__)
+        groups.append((args[0], float(args[1]), args[2], messages))
+        args, messages = args[3:], None
+    if not groups or messages:
         sys.exit(__doc__)
     out = argv[-1]
     curves = []
-    for i in range(1, len(argv) - 1, 3):
-        report = json.load(open(argv[i]))
-        wall, label = float(argv[i + 1]), argv[i + 2]
-        setup, tree, final, rows, (critical, thread_path, hybrid_path) = model(report, wall)
+    for path, wall, label, messages in groups:
+        report = json.load(open(path))
+        fit = None
+        if messages:
+            mpi = json.load(open(messages))
+            if int(mpi["slabs"]) != int(report["slabs"]) or mpi["faces_out"] != report["faces_out"]:
+                sys.exit(f"{messages}: not a run of the same volume and options as {path}")
+            fixed, per_slab, points = message_fit(mpi)
+            fit = (fixed, per_slab)
+            print(f"{label}: messages of {mpi['ranks']} ranks (slabs: MB) " +
+                  ", ".join(f"{x}: {y / 1e6:.1f}" for x, y in sorted(points)) +
+                  f"; fitted {fixed / 1e6:.2f} MB + {per_slab / 1e6:.3f} MB a slab, at {BANDWIDTH / 1e9:g} GB/s")
+        setup, tree, final, rows, (critical, thread_path, hybrid_path) = model(report, wall, messages=fit)
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
               f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
         pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "topology", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
@@ -274,7 +329,7 @@ def main(argv):
         print(f"critical path at {PATH_WORKERS} ranks: " + ", then ".join(critical))
         print(f"critical path at {PATH_WORKERS} workers as ranks of {RANK_THREADS} threads: " + ", then ".join(hybrid_path))
         print(f"critical path at {PATH_WORKERS} threads (after the set-up): " + ", then ".join(thread_path))
-        even = {row[0]: row for row in model(report, wall, even=True)[3]}
+        even = {row[0]: row for row in model(report, wall, even=True, messages=fit)[3]}
         print("slabs of equal work instead (each the mean of the measured slabs), ranks / threads: " +
               ", ".join(f"{w} workers {even[w][2]:.1f}x / {even[w][4]:.1f}x" for w in (8, 16, 32, 64)))
         print()
