@@ -508,8 +508,8 @@ int main(int argc, char** argv)
         ->default_val(opt.threads)
         ->check(CLI::Range(0, 1024));
     app.add_option("--slab-blocks", opt.blocksPerSlab,
-                   "Blocks (8^3 cells) per slab, at most: the volume is cut into a power of two of slabs (at most\n"
-                   "1024), the independent pieces threads and MPI ranks share, joined by a fixed merge tree.\n"
+                   "Blocks (8^3 cells) per slab: the volume is cut into slabs of this many blocks (at most 1024\n"
+                   "slabs), the independent pieces threads and MPI ranks share, joined by a fixed merge tree.\n"
                    "Changes the output slightly (more slabs, more seams); threads and ranks never do")
         ->default_val(opt.blocksPerSlab)
         ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));

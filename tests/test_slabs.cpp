@@ -33,10 +33,9 @@ TEST(Slabs, CountGrowsWithTheVolumeUpToALimit)
     EXPECT_EQ(slabCount(0, kDefaultBlocksPerSlab), 1u);
     EXPECT_EQ(slabCount(100, kDefaultBlocksPerSlab), 1u);
     EXPECT_EQ(slabCount(2049, 2048), 2u);
-    EXPECT_EQ(slabCount(4097, 2048), 4u);  // 3 wanted: a power of two
-    EXPECT_EQ(slabCount(185193, 2048), 128u);  // the 448^3 perf volume: at least 64 pieces of work
+    EXPECT_EQ(slabCount(185193, 2048), 91u);  // the 448^3 perf volume: at least 64 pieces of work
     EXPECT_EQ(slabCount(10000000, 2048), kMaxSlabs);
-    EXPECT_EQ(slabCount(5, 1), 8u);  // the pipeline takes at most one slab a block
+    EXPECT_EQ(slabCount(5, 1), 5u);
 }
 
 TEST(Slabs, EqualRunsCoveringEveryBlockOnce)

@@ -12,9 +12,8 @@
 
 namespace vdb_isosimp {
 
-// Blocks per slab when the options do not say, at most: about 200k full-resolution faces on CT-like
-// data (1024-2048 blocks once the count is a power of two), so a 448^3 volume gives 128 slabs and a
-// slab's batches stay a small part of it.
+// Blocks per slab when the options do not say: about 200k full-resolution faces on CT-like data, so
+// a 448^3 volume gives about 90 slabs and a slab's batches stay a small part of it.
 constexpr uint64_t kDefaultBlocksPerSlab = 2048;
 // More slabs add seams, but the last slabs to finish hold up the joins above them: a few slabs per
 // worker even out their unequal seconds (the 1024^3 gyroid's 2.1M blocks: 256 slabs left 64 threads'
@@ -59,9 +58,7 @@ struct Slab {
 };
 
 // How many slabs a list of `blocks` blocks is cut into: one per `blocksPerSlab` (rounded up), at
-// most kMaxSlabs, rounded up to a power of two. Then every join of the merge tree has two children of
-// equal slab counts, and 2^k ranks take equal shares of slabs: with 91 slabs at 448^3, one rank in
-// sixteen had 6 slabs where the mean was 5.7 and its path set the run's (docs/scale.md).
+// most kMaxSlabs.
 size_t slabCount(size_t blocks, uint64_t blocksPerSlab);
 
 // Cuts the sorted blocks into `count` slabs of equal block counts (within one); a cut may fall
