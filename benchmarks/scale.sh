@@ -35,7 +35,8 @@ for R in 0.2 0.02; do
     timed mpirun -np 1 "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n1.ply"; M1=$(minof "$M1" "$SEC")
     timed mpirun -np 2 "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n2.ply" --report "$W/n2_$R.json"; M2=$(minof "$M2" "$SEC")
   done
-  # The model's messages: 16 ranks send 15 of them, of 5 to 45 slabs (one round: only bytes are read).
+  # The model's messages: 16 ranks send 15, of subtrees from a few slabs to half the tree (one run: only
+  # their bytes are read).
   mpirun -np $RANKS "$B/vdb_isosimp" "$V" --iso $ISO -r $R -j 1 -q -o "$W/n$RANKS.ply" --report "$W/n${RANKS}_$R.json"
   for f in j2 n1 n2 n$RANKS; do cmp -s "$W/j1.ply" "$W/$f.ply" || { echo "FAIL: $f wrote other bytes than 1 thread"; exit 1; }; done
   echo "noise ${N}^3 R=$R: $(field faces_full "$W/j1_$R.json") -> $(field faces_out "$W/j1_$R.json") faces, $(field slabs "$W/j1_$R.json") slabs, RMS $(rms "$W/full$N.ply" "$W/j1.ply") % (same bytes in all four modes)"

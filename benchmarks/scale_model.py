@@ -57,7 +57,7 @@ import json
 import sys
 
 BANDWIDTH = 1.0e9          # bytes/s between ranks (10 GbE); on one machine shared memory is faster
-MESSAGE_BYTES_PER_FACE = 100.0  # without --messages: an upper figure (29-172 measured at 448^3, docs/scale.md)
+MESSAGE_BYTES_PER_FACE = 100.0  # without --messages: an early build's figure (29-172 measured since, docs/scale.md)
 # Shares of seconds_blocks, seconds_cut and seconds_check that one thread makes whatever the thread count
 # (Amdahl's serial share, 2 T2 / T1 - 1): from the 1024^3 gyroid's set-up at -j 1 and -j 2 (block list
 # 0.41 -> 0.29 s, cut 0.28 -> 0.175 s, check 0.55 -> 0.39 s: docs/scale.md).
@@ -104,8 +104,11 @@ def rank_top_nodes(slabs, ranks):
 def message_fit(mpi):
     """Bytes of a node's message as (fixed, per slab): the least-squares line through the measured ones."""
     sent = rank_top_nodes(int(mpi["slabs"]), int(mpi["ranks"]))
-    points = [(r - l, mpi["rank_bytes_sent"][k]) for k, (l, r) in sent.items()]
+    measured = mpi.get("rank_bytes_sent", [])
+    points = [(r - l, measured[k]) for k, (l, r) in sent.items() if k < len(measured)]
     n = len(points)
+    if n == 0:
+        sys.exit("--messages: the report lists no messages (a run of one rank?)")
     mx = sum(x for x, _ in points) / n
     my = sum(y for _, y in points) / n
     sxx = sum((x - mx) ** 2 for x, _ in points)
