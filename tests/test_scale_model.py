@@ -154,5 +154,40 @@ class MixedModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[2][7], by_workers[2][3])  # fewer workers: one process of threads
 
 
+class Messages(unittest.TestCase):
+    def test_each_rank_sends_its_top_node(self):
+        # 91 slabs on 16 ranks, as pipeline/slabs.cpp shares them out: the root's right half [46, 91) goes
+        # to ranks 8-15 (16 * 46 / 91 = 8.1), whose first sends it to rank 0; [0, 46) on ranks 0-7 gives its
+        # right half [23, 46) to rank 4 (8 * 23 / 46); [46, 91) on ranks 8-15 gives [69, 91) to rank 12
+        # (8 * 23 / 45 = 4.1). Fifteen messages, every slab's rank but rank 0 sending once.
+        sent = scale_model.rank_top_nodes(91, 16)
+        self.assertEqual(sorted(sent), list(range(1, 16)))
+        self.assertEqual(sent[8], (46, 91))
+        self.assertEqual(sent[4], (23, 46))
+        self.assertEqual(sent[12], (69, 91))
+        self.assertEqual(scale_model.rank_top_nodes(4, 2), {1: (2, 4)})
+
+    def test_line_through_the_messages(self):
+        # Messages of 2 MB plus 0.5 MB a slab come back as that line; ranks the report leaves out are skipped.
+        sent = scale_model.rank_top_nodes(91, 16)
+        measured = [0.0] * 16
+        for k, (l, r) in sent.items():
+            measured[k] = 2e6 + 0.5e6 * (r - l)
+        fixed, per_slab, points = scale_model.message_fit({"slabs": 91, "ranks": 16, "rank_bytes_sent": measured})
+        self.assertAlmostEqual(fixed / 1e6, 2.0)
+        self.assertAlmostEqual(per_slab / 1e6, 0.5)
+        self.assertEqual(len(points), 15)
+        _, _, points = scale_model.message_fit({"slabs": 91, "ranks": 16, "rank_bytes_sent": measured[:9]})
+        self.assertEqual(len(points), 8)
+
+    def test_transfer_on_the_ranks_path(self):
+        # Two ranks: rank 1 makes [2, 4) (1 + 1 + 0.5 s) and sends it, 1e9 + 1e9 * 2 bytes at 1 GB/s = 3 s,
+        # while rank 0 makes [0, 2) (3 + 1 + 0.5 s): the root waits for max(4.5, 2.5 + 3) = 5.5 s, then 0.5 s.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5, messages=(1e9, 1e9))
+        by_workers = {row[0]: row for row in rows}
+        self.assertAlmostEqual(by_workers[2][1], setup + 6.0 + final)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
