@@ -127,7 +127,10 @@ def model(report, wall, even=False, messages=None):
         mean = sum(node[(l, l + 1)] for l in range(slabs)) / slabs
         for l in range(slabs):
             node[(l, l + 1)] = mean
-    faces_ratio = report["faces_out"] / max(1, slabs)  # output faces per slab, for message sizes
+    if messages:  # the fitted line: bytes of a node of n slabs
+        fixed, per_slab = messages
+    else:  # the early build's bytes per output face, output faces per slab
+        fixed, per_slab = 0.0, report["faces_out"] / max(1, slabs) * MESSAGE_BYTES_PER_FACE
     final = report["seconds_final"] + max(0.0, wall - report["seconds"])
     scan = report.get("seconds_final_parallel", 0.0)
     count = report.get("seconds_count", 0.0)  # each rank counts its own slabs' faces
@@ -160,10 +163,7 @@ def model(report, wall, even=False, messages=None):
             return alone, [f"one rank's slabs [{l}, {r}) {alone:.2f} s"]
         m = merge_split(l, r)
         c = split_ranks(l, r, a, b)
-        if messages:
-            transfer = (messages[0] + messages[1] * (r - m)) / BANDWIDTH
-        else:
-            transfer = (r - m) * faces_ratio * MESSAGE_BYTES_PER_FACE / BANDWIDTH
+        transfer = (fixed + per_slab * (r - m)) / BANDWIDTH
         (left, left_path), (right, right_path) = parallel(l, m, a, c, threads), parallel(m, r, c, b, threads)
         seconds, below = (left, left_path) if left >= right + transfer else (right + transfer, right_path)
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
