@@ -629,7 +629,7 @@ private:
 
     Decimator& mDec;
     ChunkedVector<VertexGeom>::Spares* mGeomSpares;
-    QuadHeap<Candidate>* mHeapInto;
+    RadixQueue<Candidate>* mHeapInto;
     PooledVector<uint32_t> mDense;  // per slot: the vertex's number here, kNone if dead
     PooledVector<uint32_t> mIds;    // per number: the slot
     PooledVector<Renumbered> mQueueable;
@@ -1139,9 +1139,10 @@ size_t Decimator::decimateTo(size_t targetFaces)
     }
     // Entries of dead vertices pile up; drop them when they dominate the queue.
     if (mHeap.size() > 2 * mFaceCount + 1024) dropDeadEntries();
-    // The next pass goes on from about this pass's last cost: entries from the next power of two above
-    // it (1-2 times it) wait outside the heap until it runs out of cheaper ones (QuadHeap::coolFrom), so
-    // a merge near the root pops from a heap of its seam's entries, not of every edge of the subtree.
+    // The next pass goes on from about this pass's last cost: a queue of more than mForgetAbove entries
+    // drops those from the next power of two above it (1-2 times it) and lists them again if a pass
+    // gets there (RadixQueue::forgetFrom); a smaller one keeps them and notes the bar (coolFrom), which a
+    // later forgetting bar does not rise above while entries below it are left.
     // Non-negative float costs order like their bits: the bar is the next exponent, mantissa zero.
     if (mHeap.size() > kCoolAboveEntries) {
         const uint32_t exponent = mHeap.top().costBits() >> 23;

@@ -22,7 +22,7 @@
 #include "core/attribute_quadric.h"
 #include "core/chunked_vector.h"
 #include "core/marching_cubes.h"
-#include "core/quad_heap.h"
+#include "core/radix_queue.h"
 #include "core/quadric.h"
 #include "vdb_isosimp/mesh.h"
 
@@ -287,8 +287,9 @@ private:
     };
     static_assert(sizeof(Face) == 24, "face records stay 24 bytes");
     bool anyOpen(const Face& f) const { return !mMeta[f.v[0]].final || !mMeta[f.v[1]].final || !mMeta[f.v[2]].final; }
-    // A queued edge, 16 bytes so four siblings of the 4-ary heap share a cache line. `stamp` is the sum
-    // of both versions at push time: versions only grow, so an unchanged sum means neither end changed.
+    // A queued edge, 16 bytes so four siblings of the queue's 4-ary heap part share a cache line.
+    // `stamp` is the sum of both versions at push time: versions only grow, so an unchanged sum means
+    // neither end changed.
     // The placement is recomputed when the entry is popped (the quadrics are the same then).
     struct Candidate {
         uint64_t key;  // cost (float bits) << 32 | lower end
@@ -420,13 +421,13 @@ private:
     std::vector<std::pair<EdgeKey, uint32_t>> mSealedOpen;  // the same once sealed (seal()), sorted
     bool mSealed = false;
     void unseal();
-    QuadHeap<Candidate> mHeap;
+    RadixQueue<Candidate> mHeap;
     static constexpr size_t kCoolAboveEntries = 4096;  // smaller queues stay whole
-    // Queues of more than mForgetAbove entries drop their cold entries instead (QuadHeap::forgetFrom)
-    // and list every edge again when the heap runs out below the bar (requeueForgotten). Listing them
-    // costs a cost evaluation an edge where bringing cold entries back costs none: a slab's queue, which
-    // runs out below its bar at most passes, keeps them; near the top of the merge tree the bar is
-    // rarely reached (no time at 448^3, docs/perf.md).
+    // Queues of more than mForgetAbove entries drop their entries above a bar (RadixQueue::forgetFrom)
+    // and list every edge again when the queue runs out below the bar (requeueForgotten). Listing them
+    // costs a cost evaluation an edge where keeping them costs none: a slab's queue, which runs out
+    // below its bar at most passes, keeps them; near the top of the merge tree the bar is rarely
+    // reached (no time at 448^3, docs/perf.md).
     size_t mForgetAbove = size_t(1) << 20;
     void requeueForgotten();
     // Refused collapses, retried in a later pass once the faces around an end have changed. `stamp` is
