@@ -677,7 +677,8 @@ MeshPiece Decimator::park()
     // A piece's refused pairs come back as unchanged since their refusal: those whose faces changed
     // meanwhile (the next pass would retry them) go back to the queue now.
     retryRefused([&](const Refused& r) { return ringsChanged(r); });
-    // The queue's cold entries (coolFrom) go back outside the heap as the piece is absorbed again.
+    // The queue's cool bar (coolFrom) carries over to the piece's return: a later forgetting bar stops
+    // there, as if the piece had never left.
     Candidate bar;
     const bool cooled = mHeap.coldBar(bar);
     MeshPiece piece = takePiece();
