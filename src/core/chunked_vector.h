@@ -113,6 +113,18 @@ public:
     }
     void clear() { truncate(0); }
 
+    // Drops the elements `remove` says so of, keeping the others' order; returns how many it dropped.
+    template <typename Pred>
+    size_t eraseIf(Pred remove)
+    {
+        size_t kept = 0;
+        for (size_t i = 0; i < mSize; ++i)
+            if (!remove((*this)[i])) (*this)[kept++] = (*this)[i];
+        const size_t dropped = mSize - kept;
+        truncate(kept);
+        return dropped;
+    }
+
     // For an array read once front to back before it is discarded: element i, the last read so far,
     // is done with; its chunk is freed once i is the chunk's last element (nothing before i in that
     // chunk may be accessed again).

@@ -198,10 +198,7 @@ public:
         for (size_t p = kPad; p < mEnd; ++p)
             if (!remove(slot(p))) slot(kept++) = slot(p);
         mEnd = kept;
-        size_t cold = 0;
-        for (size_t i = 0; i < mCold.size(); ++i)
-            if (!remove(mCold[i])) mCold[cold++] = mCold[i];
-        mCold.truncate(cold);
+        mCold.eraseIf(remove);
         shrinkToFit();
         mUnordered = true;
         order();

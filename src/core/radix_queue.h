@@ -48,7 +48,6 @@ public:
         mLow.clear();
         for (Bucket& b : mBucket) b.clear();
         mHigh = 0;
-        mFull = 0;
         mLast = 0;
         mSpares.clear();
         mHasCold = false;
@@ -66,7 +65,6 @@ public:
                 f(b[i]);
                 b.releaseThrough(i);
             }
-            b = Bucket();
         }
         clear();
     }
@@ -133,15 +131,7 @@ public:
     void eraseIf(Pred remove)
     {
         mLow.eraseIf(remove);
-        for (unsigned k = 0; k < kBuckets; ++k) {
-            Bucket& b = mBucket[k];
-            size_t kept = 0;
-            for (size_t i = 0; i < b.size(); ++i)
-                if (!remove(b[i])) b[kept++] = b[i];
-            mHigh -= b.size() - kept;
-            b.truncate(kept);
-            if (kept == 0) mFull &= ~(uint32_t(1) << k);
-        }
+        for (Bucket& b : mBucket) mHigh -= b.eraseIf(remove);
     }
 
 private:
@@ -162,7 +152,6 @@ private:
         }
         const unsigned k = 31u - unsigned(__builtin_clz(key ^ mLast));
         mBucket[k].emplace_back(&mSpares) = x;
-        mFull |= uint32_t(1) << k;
         ++mHigh;
     }
 
@@ -174,13 +163,14 @@ private:
         if (mHasCold && !mForget && !(mLow.top() < mColdFrom)) mHasCold = false;
     }
 
-    // The heap part ran empty: the lowest bucket's least key is the new last one; its entries at that
-    // key go to the heap part, the others to buckets below (they differ from it below bit k).
+    // The heap part ran empty: the lowest non-empty bucket's least key group is the new last one; its
+    // entries of that group go to the heap part, the others to buckets below (they differ from it below
+    // bit k).
     __attribute__((noinline)) void refill()
     {
-        const unsigned k = unsigned(__builtin_ctz(mFull));
+        unsigned k = 0;
+        while (mBucket[k].empty()) ++k;
         Bucket& from = mBucket[k];
-        mFull &= ~(uint32_t(1) << k);
         mHigh -= from.size();
         uint32_t least = UINT32_MAX;
         for (size_t i = 0; i < from.size(); ++i) least = std::min(least, group(from[i]));
@@ -193,10 +183,9 @@ private:
         from.clear();
     }
 
-    QuadHeap<T> mLow;                      // entries with keys <= mLast, heap-ordered
-    std::array<Bucket, kBuckets> mBucket;  // bucket k: keys above mLast whose highest bit differing from it is k
-    size_t mHigh = 0;                      // entries in the buckets
-    uint32_t mFull = 0;                    // bit k: bucket k holds entries
+    QuadHeap<T> mLow;                      // entries whose key group is <= mLast, heap-ordered
+    std::array<Bucket, kBuckets> mBucket;  // bucket k: groups above mLast whose highest bit differing from it is k
+    size_t mHigh = 0;                      // entries in the buckets (size() is asked at every pop)
     uint32_t mLast = 0;                    // a key group
     typename Bucket::Spares mSpares;       // a chunk a refill has read, for the next bucket that grows
     T mColdFrom{};
