@@ -78,7 +78,7 @@ class ModuleMatchesProgram(unittest.TestCase):
         np.testing.assert_array_equal(f, pf.astype(np.uint32))
         # Every key of --report (but the output path), and the same values but the timings.
         self.assertEqual(sorted(r.keys()), sorted(k for k in rep if k != "output"))
-        timings = ("seconds", "seconds_slabs", "seconds_final", "seconds_final_parallel", "seconds_count", "seconds_layout", "seconds_open", "seconds_check", "seconds_topology", "seconds_blocks",
+        timings = ("seconds", "seconds_slabs", "seconds_final", "seconds_final_parallel", "seconds_count", "seconds_layout", "seconds_open", "seconds_check", "seconds_topology", "seconds_blocks", "seconds_blocks_merge",
                    "seconds_cut", "seconds_samplers", "peak_rss_mb", "tree_seconds",
                    "rank_seconds", "rank_peak_rss_mb")
         for key in (k for k in r if k not in timings and not (k.startswith("lod") and k.endswith("_seconds"))):

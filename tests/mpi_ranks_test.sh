@@ -100,6 +100,28 @@ mpirun -np 24 "$B/vdb_isosimp" "$W/small.vdb" --lods 0.2,0.05 --batch 1000 --sla
 for f in d_one_lod0.ply d_one_lod1.ply; do cmp "$W/$f" "$W/${f/one/many}" || fail "chain, deep tree: 24 ranks wrote other bytes ($f)"; done
 echo "--lods 0.2,0.05 --slab-blocks 4 (183 slabs): 24 ranks, same bytes as one process"
 
+# A fog grid of tiles beside voxels: the blocks along the tiles' faces divide among the ranks with the
+# leaves (each lists its share, the ranks merge the shares), for 3 ranks as in one process.
+/usr/bin/python3 - "$W/tiles.vdb" << 'EOF'
+import sys
+import pyopenvdb as vdb
+g = vdb.FloatGrid(0.0)
+g.name = "density"
+g.fill((0, 0, 0), (255, 127, 127), 1.0, True)  # two 128^3 tiles
+acc = g.getAccessor()
+for z in range(40):
+    for y in range(40):
+        for x in range(256, 300):
+            acc.setValueOn((x, y, z), ((x * 7 + y * 13 + z * 29) % 31) / 31.0)
+vdb.write(sys.argv[1], grids=[g])
+EOF
+"$B/vdb_isosimp" "$W/tiles.vdb" --iso 0.5 --ratio 0.2 --batch 1000 --slab-blocks 64 -q -o "$W/tiles_one.ply" --report "$W/tiles_one.json"
+tslabs=$(sed -n 's/.*"slabs": *\([0-9]*\).*/\1/p' "$W/tiles_one.json")
+[ "$tslabs" -ge 6 ] || fail "tiles: only $tslabs slabs"
+mpirun -np 3 "$B/vdb_isosimp" "$W/tiles.vdb" --iso 0.5 --ratio 0.2 --batch 1000 --slab-blocks 64 --threads 1 -q -o "$W/tiles_3.ply"
+cmp "$W/tiles_one.ply" "$W/tiles_3.ply" || fail "tiles: 3 ranks wrote other bytes"
+echo "tiles beside voxels ($tslabs slabs): 3 ranks, same bytes as one process"
+
 # Damaged leaf records (at a quarter and at 60 % of the file; the leaf at z = 96 of 112 only the last
 # rank reads): every rank walks the records before OpenVDB reads the tree, and the run ends with the
 # line one process prints.

@@ -74,6 +74,25 @@ TEST(BlockOrder, CoversEveryStraddlingCell)
         std::vector<BlockOrigin> oneThread;  // the leaves divide among threads: the list does not change
         tbb::task_arena(1).execute([&] { oneThread = collectBlocks(grid->tree(), c); });
         EXPECT_EQ(oneThread, blocks) << "seed " << seed;
+        // A distributed run's ranks each list a part and merge the parts: the same list, also where a
+        // part holds no leaf (more parts than leaves) and where tiles' faces fall to several parts.
+        for (size_t parts : {2u, 3u, 7u, 64u}) {
+            std::vector<BlockOrigin> merged;
+            std::vector<size_t> ends;
+            for (size_t part = 0; part < parts; ++part) {
+                const std::vector<BlockOrigin> mine = collectBlocks(grid->tree(), c, part, parts);
+                EXPECT_TRUE(std::is_sorted(mine.begin(), mine.end(), [](const BlockOrigin& a, const BlockOrigin& b) {
+                    return lexBefore(a, b, 2);
+                })) << "seed " << seed << ", part " << part << " of " << parts;
+                if (!spec.bigTile) {  // the leaves divide (one big tile's faces fall to one part)
+                    EXPECT_LT(mine.size(), blocks.size() * 3 / 4 + 64) << "seed " << seed << ", part " << part << " of " << parts;
+                }
+                merged.insert(merged.end(), mine.begin(), mine.end());
+                ends.push_back(merged.size());
+            }
+            mergeBlockRuns(merged, ends);
+            EXPECT_EQ(merged, blocks) << "seed " << seed << ", " << parts << " parts";
+        }
 
         openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
         box.expand(9);
@@ -96,6 +115,33 @@ TEST(BlockOrder, CoversEveryStraddlingCell)
                 }
         EXPECT_GT(straddling, 0u) << "seed " << seed;
         EXPECT_EQ(missing, 0u) << "seed " << seed << ": straddling cells outside every listed block";
+    }
+}
+
+// Sorted runs merge into one sorted list without duplicates, whatever their number, overlaps and empty
+// runs: the same list as sorting every run's blocks together.
+TEST(BlockOrder, RunsMergeIntoOneList)
+{
+    std::vector<BlockOrigin> all;
+    for (int z = 0; z < 40; z += 8)
+        for (int y = -16; y < 24; y += 8)
+            for (int x = -8; x < 32; x += 8) all.push_back({x, y, z});
+    for (size_t runs : {1u, 2u, 5u, 8u, 13u}) {
+        std::vector<BlockOrigin> blocks;
+        std::vector<size_t> ends;
+        for (size_t r = 0; r < runs; ++r) {
+            // Every block whose place is r modulo the run count, and every seventh of the others; run 2 empty.
+            for (size_t i = 0; i < all.size() && r != 2; ++i)
+                if (i % runs == r || (i + r) % 7 == 0) blocks.push_back(all[i]);
+            ends.push_back(blocks.size());
+        }
+        std::vector<BlockOrigin> expected = blocks;
+        sortBlocks(expected);
+        if (runs > 1) {
+            ASSERT_LT(expected.size(), blocks.size()) << runs << " runs: no block is listed twice";
+        }
+        mergeBlockRuns(blocks, ends);
+        EXPECT_EQ(blocks, expected) << runs << " runs";
     }
 }
 

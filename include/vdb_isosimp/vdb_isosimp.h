@@ -168,10 +168,14 @@ struct Report {
     uint64_t countStride = 1;
     double countMargin = 0.0;
     double secondsLayout = 0.0;       // of which: laying out this process's leaves (each rank its own)
-    // Of `seconds`, the set-up every rank repeats: opening the file (its checks and topology), choosing
-    // the iso-value and listing the blocks, cutting them into slabs; and counting which blocks read
-    // which leaf (each rank over its own blocks).
+    // Of `seconds`, the set-up: opening the file (its checks and topology), choosing the iso-value and
+    // listing the blocks (with ranks, each lists its share and merges the shares), cutting them into
+    // slabs; and counting which blocks read which leaf (each rank over its own blocks).
     double secondsOpen = 0.0, secondsBlocks = 0.0, secondsCut = 0.0, secondsSamplers = 0.0;
+    // Of secondsBlocks, with ranks: exchanging the shares of the block list and merging them, in
+    // this many rounds (ceil(log2 ranks)).
+    double secondsBlocksMerge = 0.0;
+    uint64_t blockMergeRounds = 0;
     double secondsCheck = 0.0;        // of secondsOpen: walking the file's records before OpenVDB reads it
     double secondsTopology = 0.0;     // of secondsOpen: reading the topology, its lower nodes on all threads
     double peakRssMb = 0.0;

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -106,6 +107,43 @@ public:
         check(MPI_Allreduce(mine, most, 3, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD), "allreduce");
         if (most[0] > 0.0 && !failed) throw PeerFailed("another rank failed reading the value range");
         return {-most[1], most[2]};
+    }
+
+    void gatherBlocks(std::vector<std::array<int32_t, 3>>& blocks, std::vector<size_t>& runEnds, bool failed) override
+    {
+        // Each rank's failure and block count, then the blocks themselves (counts in blocks: MPI's
+        // ints count up to 2^31 of them a rank).
+        const uint64_t mine[2] = {failed ? 1u : 0u, failed ? 0u : blocks.size()};
+        std::vector<uint64_t> all(2 * size_t(mRanks));
+        check(MPI_Allgather(mine, 2, MPI_UINT64_T, all.data(), 2, MPI_UINT64_T, MPI_COMM_WORLD), "allgather");
+        std::vector<int> counts(static_cast<size_t>(mRanks)), displs(static_cast<size_t>(mRanks));
+        uint64_t total = 0;
+        bool anyFailed = false;
+        runEnds.clear();
+        for (int r = 0; r < mRanks; ++r) {
+            anyFailed = anyFailed || all[2 * size_t(r)] != 0;
+            if (all[2 * size_t(r) + 1] > uint64_t(std::numeric_limits<int>::max()) ||
+                total > uint64_t(std::numeric_limits<int>::max()))
+                throw InputError("the block list is too long to share among ranks (" + std::to_string(all[2 * size_t(r) + 1]) +
+                                 " blocks on rank " + std::to_string(r) + ")");
+            displs[size_t(r)] = int(total);
+            counts[size_t(r)] = int(all[2 * size_t(r) + 1]);
+            total += all[2 * size_t(r) + 1];
+            runEnds.push_back(size_t(total));
+        }
+        if (anyFailed) {
+            if (failed) return;  // the caller goes on with its own error
+            throw PeerFailed("another rank failed listing its blocks");
+        }
+        MPI_Datatype block;
+        check(MPI_Type_contiguous(3, MPI_INT32_T, &block), "type");
+        check(MPI_Type_commit(&block), "type");
+        std::vector<std::array<int32_t, 3>> gathered(total);
+        const int code = MPI_Allgatherv(blocks.data(), int(blocks.size()), block, gathered.data(), counts.data(),
+                                        displs.data(), block, MPI_COMM_WORLD);
+        MPI_Type_free(&block);
+        check(code, "allgatherv");
+        blocks = std::move(gathered);
     }
 
     void send(size_t to, const std::vector<char>& bytes, const std::string& error) override

@@ -89,8 +89,13 @@ public:
     // before it too (failBeforeRange): the others would wait in it otherwise.
     std::array<double, 2> agreeOnRange(std::array<double, 2> range, bool failed) const;
     void failBeforeRange() const;
-    mutable bool mRangeAgreed = false;
+    mutable bool mRangeAgreed = false, mRangeFailed = false;
     void listBlocks();
+    void gatherBlocks(bool failed);
+    // A rank that fails after the value range and before the block list meets the others' exchange
+    // of the list (gatherBlocks) once, failed: they would wait in it otherwise.
+    void failBeforeBlocks();
+    bool mBlocksGathered = false;
     void splitSlabs();
     void keepOwnLeaves();
     void countFacesForTarget();
@@ -249,7 +254,10 @@ std::array<double, 2> PipelineRun::valueRange() const
 std::array<double, 2> PipelineRun::agreeOnRange(std::array<double, 2> range, bool failed) const
 {
     mRangeAgreed = true;
-    return mRanks->agreeRange(range, failed);
+    mRangeFailed = true;  // until every rank is known to have its range
+    range = mRanks->agreeRange(range, failed);
+    mRangeFailed = failed;
+    return range;
 }
 
 void PipelineRun::failBeforeRange() const
@@ -265,10 +273,34 @@ void PipelineRun::listBlocks()
     if (mOpt.maxMemoryBytes > 0)
         if (const uint64_t shells = mVol->tileShellBlocks(mCls))
             checkMemoryBudget(mPath, mInfo, mOpt, mOpt.maxMemoryBytes, shells);
-    mBlocks = mVol->blocks(mCls);
+    if (mRanks && mRanks->ranks() > 1) {
+        // Each rank lists its share of the leaves' and tiles' blocks; the ranks exchange them and each
+        // merges the parts into the whole list, the one a single process lists.
+        mBlocks = mVol->blocks(mCls, mRanks->rank(), mRanks->ranks());
+        gatherBlocks(false);
+    } else {
+        mBlocks = mVol->blocks(mCls);
+    }
     mResult.report.blocks = mBlocks.size();
     mResult.report.secondsBlocks += mClock.seconds() - start;
     if (mBlocks.empty()) throw noSurface();
+}
+
+void PipelineRun::gatherBlocks(bool failed)
+{
+    const double start = mClock.seconds();
+    mBlocksGathered = true;
+    std::vector<size_t> runEnds;
+    mRanks->gatherBlocks(mBlocks, runEnds, failed);
+    if (failed) return;
+    mergeBlockRuns(mBlocks, runEnds);
+    mResult.report.secondsBlocksMerge = mClock.seconds() - start;
+    mResult.report.blockMergeRounds = uint64_t(std::ceil(std::log2(double(runEnds.size()))));
+}
+
+void PipelineRun::failBeforeBlocks()
+{
+    if (mRanks && mRanks->ranks() > 1 && mRangeAgreed && !mRangeFailed && !mBlocksGathered) gatherBlocks(true);
 }
 
 // For a face target: the faces of the full-resolution surface, counted over this process's blocks
@@ -894,6 +926,7 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         throw;
     } catch (const std::exception& e) {
         run.failBeforeRange();
+        run.failBeforeBlocks();
         run.agreeAmongRanks(e.what());
         throw;
     }

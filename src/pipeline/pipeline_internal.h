@@ -53,6 +53,11 @@ public:
     // all ranks. Throws PeerFailed on a rank that did not fail when another did (agree() then
     // carries that rank's message to rank 0).
     virtual std::array<double, 2> agreeRange(std::array<double, 2> range, bool failed) = 0;
+    // Called by every rank once its part of the block list is collected (`blocks`, sorted; `failed`:
+    // collecting it threw): every rank's part in rank order replaces `blocks`, and `runEnds` gets where
+    // each ends. Throws PeerFailed on a rank that did not fail when another did (agree() then carries
+    // that rank's message to rank 0).
+    virtual void gatherBlocks(std::vector<std::array<int32_t, 3>>& blocks, std::vector<size_t>& runEnds, bool failed) = 0;
     // Hands a finished node to rank `to` (or, `error` not empty, the error that stopped it).
     virtual void send(size_t to, const std::vector<char>& bytes, const std::string& error) = 0;
     // The node rank `from` sends; throws the error it sent instead.

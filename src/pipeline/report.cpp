@@ -61,6 +61,8 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             real("seconds_check", r.secondsCheck),
             real("seconds_topology", r.secondsTopology),
             real("seconds_blocks", r.secondsBlocks),
+            real("seconds_blocks_merge", r.secondsBlocksMerge),
+            integer("block_merge_rounds", r.blockMergeRounds),
             real("seconds_cut", r.secondsCut),
             real("seconds_samplers", r.secondsSamplers),
             real("peak_rss_mb", r.peakRssMb),

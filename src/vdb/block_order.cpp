@@ -26,6 +26,29 @@ void sortBlocks(std::vector<BlockOrigin>& blocks)
     blocks.shrink_to_fit();
 }
 
+void mergeBlockRuns(std::vector<BlockOrigin>& blocks, const std::vector<size_t>& runEnds)
+{
+    // Neighbouring runs merge pairwise, round after round, the pairs of a round on all threads: a
+    // round reads every block once, and W runs take ceil(log2 W) rounds.
+    const auto less = [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); };
+    std::vector<size_t> ends = runEnds;
+    std::vector<BlockOrigin> merged(blocks.size());
+    while (ends.size() > 1) {
+        std::vector<size_t> next((ends.size() + 1) / 2);
+        tbb::parallel_for(size_t(0), next.size(), [&](size_t k) {
+            const size_t begin = 2 * k == 0 ? 0 : ends[2 * k - 1], mid = ends[2 * k];
+            const size_t end = 2 * k + 1 < ends.size() ? ends[2 * k + 1] : mid;
+            const auto at = [](auto& v, size_t i) { return v.begin() + std::ptrdiff_t(i); };
+            std::merge(at(blocks, begin), at(blocks, mid), at(blocks, mid), at(blocks, end), at(merged, begin), less);
+            next[k] = end;
+        });
+        blocks.swap(merged);
+        ends = std::move(next);
+    }
+    blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+    blocks.shrink_to_fit();
+}
+
 namespace {
 
 void checkRange(const openvdb::CoordBBox& box, const char* what)
@@ -42,12 +65,13 @@ void checkRange(const openvdb::CoordBBox& box, const char* what)
 
 // Calls fn(axis, tileMin, tileExtents, side) for every face of a tile where the constant region
 // across lies on the other side of the iso-value: the cells along it form a one-block shell.
+// Part `part` of `parts` probes every parts-th tile (each part checks every tile's value).
 template <typename TreeT, typename Fn>
-void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn)
+void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn, size_t part = 0, size_t parts = 1)
 {
     typename TreeT::ValueAllCIter it = tree.cbeginValueAll();
     it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1);
-    for (; it; ++it) {
+    for (size_t k = 0; it; ++it, ++k) {
         const double v = double(*it);
         openvdb::CoordBBox box;
         it.getBoundingBox(box);
@@ -56,6 +80,7 @@ void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn)
             s << "tile " << box << " holds a non-finite value (" << v << ")";
             throw InputError(s.str());
         }
+        if (k % parts != part) continue;
         const bool in = c.inside(v);
         const int depth = int(it.getDepth());
         const openvdb::Coord lo = box.min(), size = box.extents();
@@ -77,7 +102,7 @@ void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn)
 } // namespace
 
 template <typename TreeT>
-std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part, size_t parts)
 {
     // Leaves: the leaf's own block and the 7 blocks whose upper corners sample it. Most of those 7 are
     // leaves themselves; only the others are added, so the list is never 8x the leaf count: it is
@@ -88,6 +113,10 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
     std::vector<const LeafT*> leaves;
     leaves.reserve(tree.leafCount());
     tree.getNodes(leaves);
+    // This part's share of the leaves, in the tree's order.
+    const size_t all = leaves.size();
+    leaves.erase(leaves.begin() + std::ptrdiff_t(all * (part + 1) / parts), leaves.end());
+    leaves.erase(leaves.begin(), leaves.begin() + std::ptrdiff_t(all * part / parts));
     std::vector<BlockOrigin> blocks(leaves.size());
     tbb::enumerable_thread_specific<std::vector<BlockOrigin>> below;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
@@ -114,7 +143,7 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c)
                 b[w] = j;
                 blocks.push_back(b);
             }
-    });
+    }, part, parts);
     sortBlocks(blocks);
     return blocks;
 }
@@ -129,8 +158,8 @@ uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c)
     return n;
 }
 
-template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
-template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
+template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&, size_t, size_t);
+template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&, size_t, size_t);
 template uint64_t countTileShellBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
 template uint64_t countTileShellBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
 

@@ -47,10 +47,17 @@ inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 
-// Collects the blocks of an OpenVDB tree (float or double). @throw InputError for non-finite tiles or
-// coordinates outside the range vertex keys can name.
+// Collects the blocks of an OpenVDB tree (float or double), sorted and without duplicates. Part `part`
+// of `parts` collects those of that share of the leaves and of the tiles' faces: the parts' lists
+// merged (mergeBlockRuns) are the whole list, as the ranks of a distributed run divide it. @throw
+// InputError for non-finite tiles (every part checks every tile) or coordinates outside the range
+// vertex keys can name (each part checks its leaves).
 template <typename TreeT>
-std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c);
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part = 0, size_t parts = 1);
+
+// Merges consecutive runs of `blocks`, each sorted by (z, y, x) without duplicates and ending at
+// runEnds[i], into one such list (a block listed by two runs stays once).
+void mergeBlockRuns(std::vector<BlockOrigin>& blocks, const std::vector<size_t>& runEnds);
 
 // How many blocks the tiles' faces add to collectBlocks (before duplicates go), without collecting
 // them: a few tiles can describe a surface of millions of blocks, which the memory estimate must see

@@ -246,9 +246,9 @@ public:
         layOutInSweepOrder();
     }
 
-    std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const override
+    std::vector<std::array<int32_t, 3>> blocks(const Classifier& c, size_t part, size_t parts) const override
     {
-        return collectBlocks(mGrid->tree(), c);
+        return collectBlocks(mGrid->tree(), c, part, parts);
     }
 
     uint64_t tileShellBlocks(const Classifier& c) const override { return countTileShellBlocks(mGrid->tree(), c); }

@@ -76,8 +76,10 @@ public:
 
     const VolumeInfo& info() const { return mInfo; }
 
-    // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp).
-    virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c) const = 0;
+    // Origins of every block that may hold a straddling cell, sorted by z, then y, then x (block_order.cpp);
+    // part `part` of `parts`: those of that share of the leaves and tiles, whose lists merged are the
+    // whole list (a distributed run's ranks divide it).
+    virtual std::vector<std::array<int32_t, 3>> blocks(const Classifier& c, size_t part = 0, size_t parts = 1) const = 0;
     // Keeps the leaves `keep` accepts (by origin; empty: all of them), laid out in sweep order so that
     // their pages empty as extraction releases them, and deletes every other leaf (an MPI rank keeps
     // the leaves its own slabs sample, not the whole topology). Once, after blocks() and before any
