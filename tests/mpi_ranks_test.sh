@@ -122,6 +122,20 @@ mpirun -np 3 "$B/vdb_isosimp" "$W/tiles.vdb" --iso 0.5 --ratio 0.2 --batch 1000 
 cmp "$W/tiles_one.ply" "$W/tiles_3.ply" || fail "tiles: 3 ranks wrote other bytes"
 echo "tiles beside voxels ($tslabs slabs): 3 ranks, same bytes as one process"
 
+# Each rank reads the topology of its share of the lower internal nodes as it opens the file, and
+# those its slabs sample once it knows them: a fog box of tiles alone (no leaf, so no node weighs
+# leaves) and a level set with tiles inside, both over several lower nodes, on 3 and 8 ranks.
+"$B/make_volume" fog-box -n 200 --rotated -o "$W/fb.vdb" > /dev/null
+"$B/make_volume" sphere -n 200 -o "$W/sph.vdb" > /dev/null
+for V in fb sph; do
+  "$B/vdb_isosimp" "$W/$V.vdb" --ratio 0.05 --slab-blocks 32 -q -o "$W/${V}_one.ply"
+  for N in 3 8; do
+    mpirun -np $N "$B/vdb_isosimp" "$W/$V.vdb" --ratio 0.05 --slab-blocks 32 --threads 1 -q -o "$W/${V}_$N.ply"
+    cmp "$W/${V}_one.ply" "$W/${V}_$N.ply" || fail "$V: $N ranks wrote other bytes"
+  done
+  echo "$V, its lower nodes divided among ranks: 3 and 8 ranks, same bytes as one process"
+done
+
 # Damaged leaf records (at a quarter and at 60 % of the file; the leaf at z = 96 of 112 only the last
 # rank reads): every rank walks the records before OpenVDB reads the tree, and the run ends with the
 # line one process prints.

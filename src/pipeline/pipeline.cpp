@@ -381,6 +381,8 @@ void PipelineRun::keepOwnLeaves()
     const auto [begin, end] = rankBlocks();
     std::function<bool(const BlockOrigin&)> keep;  // empty: every leaf (one process)
     if (begin != 0 || end != mBlocks.size()) {
+        // A rank opened its share of the topology: what its own blocks sample comes in now.
+        mVol->readAround(mBlocks.data() + begin, end - begin);
         const auto within = [&, begin = begin, end = end](const BlockOrigin& b) {
             return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
         };
@@ -391,7 +393,7 @@ void PipelineRun::keepOwnLeaves()
         };
     }
     mVol->keepLeaves(keep);
-    // Each rank lays out its own share: the scaling model divides it among workers.
+    // Each rank reads and lays out its own share: the scaling model divides it among workers.
     mResult.report.secondsLayout = mClock.seconds() - start;
 }
 

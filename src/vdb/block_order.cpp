@@ -65,22 +65,32 @@ void checkRange(const openvdb::CoordBBox& box, const char* what)
 
 // Calls fn(axis, tileMin, tileExtents, side) for every face of a tile where the constant region
 // across lies on the other side of the iso-value: the cells along it form a one-block shell.
-// Part `part` of `parts` probes every parts-th tile (each part checks every tile's value).
+// Part `part` of `parts` probes every parts-th tile (each part checks every tile's value). In a tree
+// read in part, the tiles standing for absent lower nodes are none of the file's, and what lies across
+// a face in such a node is what `absent` says.
 template <typename TreeT, typename Fn>
-void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn, size_t part = 0, size_t parts = 1)
+void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn, size_t part = 0, size_t parts = 1,
+                      const AbsentLowerProbe& absent = {})
 {
+    constexpr int kLowerTileDepth = int(TreeT::DEPTH) - 2;  // a tile of a lower internal node
     typename TreeT::ValueAllCIter it = tree.cbeginValueAll();
     it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1);
-    for (size_t k = 0; it; ++it, ++k) {
-        const double v = double(*it);
+    bool leafThere = false;
+    double valueThere = 0.0;
+    for (size_t k = 0; it; ++it) {
         openvdb::CoordBBox box;
         it.getBoundingBox(box);
+        if (absent && int(it.getDepth()) < kLowerTileDepth &&
+            absent({box.min().x(), box.min().y(), box.min().z()}, leafThere, valueThere))
+            continue;
+        const double v = double(*it);
+        const size_t index = k++;
         if (!std::isfinite(v)) {
             std::ostringstream s;
             s << "tile " << box << " holds a non-finite value (" << v << ")";
             throw InputError(s.str());
         }
-        if (k % parts != part) continue;
+        if (index % parts != part) continue;
         const bool in = c.inside(v);
         const int depth = int(it.getDepth());
         const openvdb::Coord lo = box.min(), size = box.extents();
@@ -88,10 +98,14 @@ void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn, size_t pa
             for (int side = 0; side < 2; ++side) {
                 openvdb::Coord across = lo;
                 across[axis] = side ? lo[axis] + size[axis] : lo[axis] - 1;
-                const int acrossDepth = tree.getValueDepth(across);
+                double acrossValue = 0.0;
+                const bool unread = absent && absent({across.x(), across.y(), across.z()}, leafThere, acrossValue);
+                const int acrossDepth = unread ? (leafThere ? kLowerTileDepth + 1 : kLowerTileDepth) : tree.getValueDepth(across);
                 if (acrossDepth > depth) continue;            // finer structure: handled from there
                 if (acrossDepth == depth && side == 0) continue;  // a tile of this size across: its +side reports it
-                if (c.inside(double(tree.getValue(across))) == in) continue;
+                // (Read only here: a value in a leaf would load the leaf.)
+                if (!unread) acrossValue = double(tree.getValue(across));
+                if (c.inside(acrossValue) == in) continue;
                 checkRange(box, "tile");
                 fn(axis, lo, size, side);
             }
@@ -102,7 +116,8 @@ void forEachTileShell(const TreeT& tree, const Classifier& c, Fn&& fn, size_t pa
 } // namespace
 
 template <typename TreeT>
-std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part, size_t parts)
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part, size_t parts,
+                                       const AbsentLowerProbe& absent)
 {
     // Leaves: the leaf's own block and the 7 blocks whose upper corners sample it. Most of those 7 are
     // leaves themselves; only the others are added, so the list is never 8x the leaf count: it is
@@ -143,24 +158,26 @@ std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, s
                 b[w] = j;
                 blocks.push_back(b);
             }
-    }, part, parts);
+    }, part, parts, absent);
     sortBlocks(blocks);
     return blocks;
 }
 
 template <typename TreeT>
-uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c)
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c, const AbsentLowerProbe& absent)
 {
     uint64_t n = 0;
     forEachTileShell(tree, c, [&](int axis, const openvdb::Coord&, const openvdb::Coord& size, int) {
         n += uint64_t(size[(axis + 1) % 3] / 8 + 1) * uint64_t(size[(axis + 2) % 3] / 8 + 1);
-    });
+    }, 0, 1, absent);
     return n;
 }
 
-template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&, size_t, size_t);
-template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&, size_t, size_t);
-template uint64_t countTileShellBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&);
-template uint64_t countTileShellBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&);
+template std::vector<BlockOrigin> collectBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&, size_t, size_t,
+                                                                    const AbsentLowerProbe&);
+template std::vector<BlockOrigin> collectBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&, size_t, size_t,
+                                                                     const AbsentLowerProbe&);
+template uint64_t countTileShellBlocks<openvdb::FloatTree>(const openvdb::FloatTree&, const Classifier&, const AbsentLowerProbe&);
+template uint64_t countTileShellBlocks<openvdb::DoubleTree>(const openvdb::DoubleTree&, const Classifier&, const AbsentLowerProbe&);
 
 } // namespace vdb_isosimp

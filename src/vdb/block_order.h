@@ -12,6 +12,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "core/marching_cubes.h"
@@ -47,13 +48,22 @@ inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
 // Sorts by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 
+// What a tree read in part says of the lower internal nodes it does not hold (a distributed run's rank
+// reads the topology of its own share of them: Volume::open): whether (x, y, z) lies in one (false:
+// the tree holds what is there), and if so whether a leaf is there (`leaf`) or else the tile value. The
+// tree itself holds an inactive background tile in such a node's place. Empty: the tree is whole.
+using AbsentLowerProbe = std::function<bool(const std::array<int32_t, 3>& xyz, bool& leaf, double& value)>;
+
 // Collects the blocks of an OpenVDB tree (float or double), sorted and without duplicates. Part `part`
 // of `parts` collects those of that share of the leaves and of the tiles' faces: the parts' lists
 // merged (mergeBlockRuns) are the whole list, as the ranks of a distributed run divide it. @throw
 // InputError for non-finite tiles (every part checks every tile) or coordinates outside the range
 // vertex keys can name (each part checks its leaves).
+// A tree read in part (`absent`) lists the blocks of its own leaves and tiles (and of the upper nodes'
+// tiles, which every part holds): each part's list merged is again the whole list.
 template <typename TreeT>
-std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part = 0, size_t parts = 1);
+std::vector<BlockOrigin> collectBlocks(const TreeT& tree, const Classifier& c, size_t part = 0, size_t parts = 1,
+                                       const AbsentLowerProbe& absent = {});
 
 // Merges consecutive runs of `blocks`, each sorted by (z, y, x) without duplicates and ending at
 // runEnds[i], into one such list (a block listed by two runs stays once).
@@ -63,6 +73,6 @@ void mergeBlockRuns(std::vector<BlockOrigin>& blocks, const std::vector<size_t>&
 // them: a few tiles can describe a surface of millions of blocks, which the memory estimate must see
 // before they are listed. @throw InputError as collectBlocks does.
 template <typename TreeT>
-uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c);
+uint64_t countTileShellBlocks(const TreeT& tree, const Classifier& c, const AbsentLowerProbe& absent = {});
 
 } // namespace vdb_isosimp

@@ -30,6 +30,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
+#include <unordered_map>
 
 #include <fcntl.h>
 #include <malloc.h>
@@ -209,6 +210,117 @@ void loadLeaf(LeafT& leaf, const std::string& gridName, const StoredLeaves* stor
     throw InputError("grid '" + gridName + "', leaf " + coordText(leaf.origin()) + ": " + what);
 }
 
+// What OpenVDB's node reads ask of a stream over the file (io::Archive sets the same).
+struct TopologyFormat {
+    openvdb::VersionId library;
+    uint32_t fileVersion = 0, compression = 0;
+    bool half = false;
+    openvdb::GridClass gridClass = openvdb::GRID_UNKNOWN;
+};
+
+struct TopologyStream {
+    std::ifstream is;
+    std::shared_ptr<openvdb::io::StreamMetadata> meta = std::make_shared<openvdb::io::StreamMetadata>();
+
+    TopologyStream(const std::string& path, const TopologyFormat& format, const void* background)
+        : is(path, std::ios::binary)
+    {
+        openvdb::io::setStreamMetadataPtr(is, meta, /*transfer=*/false);
+        openvdb::io::setVersion(is, format.library, format.fileVersion);
+        openvdb::io::setDataCompression(is, format.compression);
+        openvdb::io::setHalfFloat(is, format.half);
+        openvdb::io::setGridClass(is, format.gridClass);
+        openvdb::io::setGridBackgroundValuePtr(is, background);
+    }
+    void seek(uint64_t pos)
+    {
+        is.seekg(std::streamoff(pos));
+        if (!is) throw std::runtime_error("cannot seek to its topology");
+    }
+    template <typename T>
+    T value()
+    {
+        T v{};
+        is.read(reinterpret_cast<char*>(&v), sizeof v);
+        return v;
+    }
+};
+
+// Reads lower internal nodes, leaves' masks included, with OpenVDB's own InternalNode::readTopology on
+// all threads, each from where the walk of the stored tree found its record starts and checked to end
+// where it found the record ends. @throw std::runtime_error where one does not.
+template <typename LowerT>
+std::vector<std::unique_ptr<LowerT>> readLowerNodes(const std::string& path, const TopologyFormat& format,
+                                                    const typename LowerT::ValueType& background,
+                                                    const std::vector<openvdb::Coord>& origins,
+                                                    const std::vector<std::array<uint64_t, 2>>& bytes)
+{
+    std::vector<std::unique_ptr<LowerT>> nodes(origins.size());
+    std::atomic<bool> sound{true};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, origins.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+        TopologyStream in(path, format, &background);
+        for (size_t k = r.begin(); k != r.end() && sound; ++k) {
+            in.seek(bytes[k][0]);
+            nodes[k] = std::make_unique<LowerT>(openvdb::PartialCreate(), origins[k], background);
+            nodes[k]->readTopology(in.is, format.half);
+            if (!in.is || uint64_t(in.is.tellg()) != bytes[k][1]) sound = false;
+        }
+    });
+    if (!sound) throw std::runtime_error("its topology ends early");
+    return nodes;
+}
+
+// The lower internal nodes a distributed run's rank leaves on disk when it opens a file (Volume::open
+// with a part of the ranks): each one's child mask and tile values, read from its record without its
+// leaves, and where the record lies, so that the rank reads those its slabs sample once it knows
+// them (readAround). The tree holds an inactive background tile in each one's place.
+struct UnreadLowersBase {
+    virtual ~UnreadLowersBase() = default;
+    // Every leaf's origin in the file's order, and which of them the tree holds as read: [ownFirst, ownEnd).
+    std::vector<std::array<int32_t, 3>> origins;
+    size_t ownFirst = 0, ownEnd = 0;
+    bool activeTiles = false;  // whether an unread node holds an active tile
+};
+
+template <typename TreeT>
+struct UnreadLowers final : UnreadLowersBase {
+    using LowerT = typename TreeT::RootNodeType::ChildNodeType::ChildNodeType;
+    using ValueT = typename TreeT::ValueType;
+    struct Node {
+        openvdb::Coord origin;
+        std::array<uint64_t, 2> bytes{};
+        typename LowerT::NodeMaskType childMask;
+        std::unique_ptr<ValueT[]> values;
+        bool activeTiles = false;
+    };
+    std::string path;
+    TopologyFormat format;
+    ValueT background{};
+    std::vector<Node> nodes;
+    std::unordered_map<uint64_t, size_t> at;  // by key(origin)
+
+    static uint64_t key(int32_t x, int32_t y, int32_t z)
+    {
+        constexpr int32_t kMask = ~int32_t(LowerT::DIM - 1);
+        const auto part = [](int32_t v) { return uint64_t(uint32_t(v >> LowerT::TOTAL) & 0x1FFFFF); };
+        return part(x & kMask) << 42 | part(y & kMask) << 21 | part(z & kMask);
+    }
+    const Node* find(int32_t x, int32_t y, int32_t z) const
+    {
+        const auto it = at.find(key(x, y, z));
+        return it == at.end() ? nullptr : &nodes[it->second];
+    }
+    bool probe(const std::array<int32_t, 3>& xyz, bool& leaf, double& value) const
+    {
+        const Node* n = find(xyz[0], xyz[1], xyz[2]);
+        if (!n) return false;
+        const openvdb::Index i = LowerT::coordToOffset(openvdb::Coord(xyz[0], xyz[1], xyz[2]));
+        leaf = n->childMask.isOn(i);
+        value = double(n->values[i]);
+        return true;
+    }
+};
+
 // Where a volume's grid comes from: a caller's grid (whole, kept), or a file's, whose voxels OpenVDB left
 // on disk behind delayed-load records (through the file's mapping) or whose topology it read alone (the
 // voxels come from the records the walk of the stored tree found, StoredLeaves).
@@ -219,7 +331,8 @@ class VolumeT final : public Volume {
 public:
     using ValueT = typename GridT::ValueType;
 
-    VolumeT(typename GridT::Ptr grid, VolumeInfo info, GridSource source) : mGrid(std::move(grid))
+    VolumeT(typename GridT::Ptr grid, VolumeInfo info, GridSource source, std::shared_ptr<UnreadLowersBase> unread = {})
+        : mGrid(std::move(grid)), mUnreadLowers(std::static_pointer_cast<UnreadLowers<TreeT>>(std::move(unread)))
     {
         mInfo = std::move(info);
         mFromFile = source != GridSource::Caller;
@@ -234,11 +347,7 @@ public:
         if (!mFromFile) return;  // a caller's grid stays whole
         if (mUnwalked) {
             KeptRecordsWalk walk(*mUnwalked);
-            for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) {
-                const openvdb::Coord o = it->origin();
-                const std::array<int32_t, 3> origin{o.x(), o.y(), o.z()};
-                walk.leaf(origin, !keep || keep(origin));
-            }
+            forEachStoredLeaf([&](const std::array<int32_t, 3>& origin, size_t) { walk.leaf(origin, !keep || keep(origin)); });
             walk.walk();
             mUnwalked.reset();
         }
@@ -248,10 +357,59 @@ public:
 
     std::vector<std::array<int32_t, 3>> blocks(const Classifier& c, size_t part, size_t parts) const override
     {
+        // A tree read in part lists what it holds: its part of the lower nodes is this part.
+        if (mUnreadLowers) return collectBlocks(mGrid->tree(), c, 0, 1, absentProbe());
         return collectBlocks(mGrid->tree(), c, part, parts);
     }
 
-    uint64_t tileShellBlocks(const Classifier& c) const override { return countTileShellBlocks(mGrid->tree(), c); }
+    uint64_t tileShellBlocks(const Classifier& c) const override
+    {
+        return countTileShellBlocks(mGrid->tree(), c, mUnreadLowers ? absentProbe() : AbsentLowerProbe{});
+    }
+
+    void readAround(const std::array<int32_t, 3>* blocks, size_t count) override
+    {
+        if (!mUnreadLowers || mUnreadLowers->nodes.empty()) return;
+        using LowerT = typename UnreadLowers<TreeT>::LowerT;
+        using UpperT = typename TreeT::RootNodeType::ChildNodeType;
+        UnreadLowers<TreeT>& unread = *mUnreadLowers;
+        // The unread nodes these blocks' samples reach (a block's and its +x/+y/+z neighbours' leaves).
+        std::vector<char> wanted(unread.nodes.size(), 0);
+        for (size_t i = 0; i < count; ++i)
+            for (int d = 0; d < 8; ++d) {
+                const BlockOrigin leaf = sampledLeaf(blocks[i], d);
+                const auto it = unread.at.find(UnreadLowers<TreeT>::key(leaf[0], leaf[1], leaf[2]));
+                if (it != unread.at.end()) wanted[it->second] = 1;
+            }
+        std::vector<openvdb::Coord> origins;
+        std::vector<std::array<uint64_t, 2>> bytes;
+        std::vector<size_t> which;
+        for (size_t k = 0; k < wanted.size(); ++k)
+            if (wanted[k]) {
+                origins.push_back(unread.nodes[k].origin);
+                bytes.push_back(unread.nodes[k].bytes);
+                which.push_back(k);
+            }
+        std::vector<std::unique_ptr<LowerT>> read;
+        try {
+            read = readLowerNodes<LowerT>(unread.path, unread.format, unread.background, origins, bytes);
+        } catch (const std::bad_alloc&) {
+            throw InputError(mInfo.file + ": cannot read grid '" + mInfo.gridName + "' (out of memory reading its topology)");
+        } catch (const std::exception& e) {
+            throw InputError(mInfo.file + ": cannot read grid '" + mInfo.gridName + "' (" + oneLine(e.what()) + ")");
+        }
+        for (size_t j = 0; j < which.size(); ++j) {
+            if (read[j]->getChildMask() != unread.nodes[which[j]].childMask)
+                throw InputError(mInfo.file + ": truncated or damaged OpenVDB file (grid '" + mInfo.gridName +
+                                 "': its topology changed while it was read)");
+            UpperT* upper = mGrid->tree().root().template probeNode<UpperT>(origins[j]);
+            if (!upper || !upper->addChild(read[j].release()))
+                throw InputError(mInfo.file + ": grid '" + mInfo.gridName + "': its topology is not the walked one");
+        }
+        // What stays unread is never sampled: forgotten, with the lookup.
+        unread.nodes.clear();
+        unread.at.clear();
+    }
 
     void sample(const std::array<int32_t, 3>& origin, BlockSamples& out, uint8_t reloadable) const override
     {
@@ -525,16 +683,19 @@ public:
         else for (auto it = mGrid->tree().cbeginLeaf(); it; ++it) leaves.push_back(const_cast<LeafT*>(it.getLeaf()));
         const bool release = copy != mGrid;
         using Range = std::array<double, 2>;
+        // A tree read in part holds this part's leaves and no others.
+        if (mUnreadLowers) part = 0, parts = 1;
         const size_t first = leaves.size() * part / parts, last = leaves.size() * (part + 1) / parts;
         if (first >= last) return {lo, hi};
         if (mUnwalked) {
             // The part a shared walk checked is this part of the leaves in the file's order, which is
             // the tree's: checked, and any leaf of the part outside it walked here, before it is read.
+            // A tree read in part holds one run of the file's leaves.
+            const size_t shift = mUnreadLowers ? mUnreadLowers->ownFirst : 0;
             KeptRecordsWalk walk(*mUnwalked);
-            for (size_t i = 0; i < leaves.size(); ++i) {
-                const openvdb::Coord o = leaves[i]->origin();
-                walk.leaf({o.x(), o.y(), o.z()}, i >= first && i < last);
-            }
+            forEachStoredLeaf([&](const std::array<int32_t, 3>& origin, size_t i) {
+                walk.leaf(origin, i >= first + shift && i < last + shift);
+            });
             walk.walk();
         }
         const Range r = tbb::parallel_reduce(
@@ -562,9 +723,34 @@ public:
     }
 
 private:
+    using TreeT = typename GridT::TreeType;
     using LeafT = typename GridT::TreeType::LeafNodeType;
     using ParentT = typename GridT::TreeType::RootNodeType::ChildNodeType::ChildNodeType;
+
+    AbsentLowerProbe absentProbe() const
+    {
+        const UnreadLowers<TreeT>* unread = mUnreadLowers.get();
+        return [unread](const std::array<int32_t, 3>& xyz, bool& leaf, double& value) { return unread->probe(xyz, leaf, value); };
+    }
+    // fn(origin, index) for every leaf the file stores, in the file's order (a tree read in part holds
+    // some of them).
+    template <typename Fn>
+    void forEachStoredLeaf(Fn&& fn) const
+    {
+        if (mUnreadLowers) {
+            for (size_t i = 0; i < mUnreadLowers->origins.size(); ++i) fn(mUnreadLowers->origins[i], i);
+            return;
+        }
+        size_t i = 0;
+        for (auto it = mGrid->tree().cbeginLeaf(); it; ++it, ++i) {
+            const openvdb::Coord o = it->origin();
+            fn(std::array<int32_t, 3>{o.x(), o.y(), o.z()}, i);
+        }
+    }
+
     typename GridT::Ptr mGrid;
+    // Where the tree was read in part (a distributed run's rank): the lower nodes left unread.
+    std::shared_ptr<UnreadLowers<TreeT>> mUnreadLowers;
     std::mutex mReleaseMutex;
     // Copies, still on disk, of the leaves a reloadable read loaded, until they are parked or released.
     mutable std::mutex mUnreadMutex;
@@ -748,51 +934,25 @@ void topologyInfo(const GridT& g, VolumeInfo& info)
     for (const auto& layer : perLayer) info.maxLeavesPerLayer = std::max(info.maxLeavesPerLayer, layer.second);
 }
 
-// A stream over the file with what OpenVDB's node reads ask of it (io::Archive sets the same).
-struct TopologyStream {
-    std::ifstream is;
-    std::shared_ptr<openvdb::io::StreamMetadata> meta = std::make_shared<openvdb::io::StreamMetadata>();
-
-    TopologyStream(const std::string& path, const openvdb::io::File& file, const VdbGridLayout& layout,
-                   const openvdb::GridBase& grid, const void* background)
-        : is(path, std::ios::binary)
-    {
-        openvdb::io::setStreamMetadataPtr(is, meta, /*transfer=*/false);
-        openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
-        openvdb::io::setDataCompression(is, layout.compression);
-        openvdb::io::setHalfFloat(is, grid.saveFloatAsHalf());
-        openvdb::io::setGridClass(is, grid.getGridClass());
-        openvdb::io::setGridBackgroundValuePtr(is, background);
-    }
-    void seek(uint64_t pos)
-    {
-        is.seekg(std::streamoff(pos));
-        if (!is) throw std::runtime_error("cannot seek to its topology");
-    }
-    template <typename T>
-    T value()
-    {
-        T v{};
-        is.read(reinterpret_cast<char*>(&v), sizeof v);
-        return v;
-    }
-};
-
 // The tree's topology as Tree::readTopology reads it, with the lower internal nodes (and their
 // millions of leaves) read by OpenVDB's own InternalNode::readTopology on all threads, each from where
 // the walk of the stored tree found it starts (VdbGridLayout::lowerNodes); the root and the upper
-// nodes, a few kilobytes, are read here in order as RootNode and InternalNode read them.
+// nodes, a few kilobytes, are read here in order as RootNode and InternalNode read them. Part `part` of
+// `parts` (a distributed run's rank) reads the lower nodes of that share of the leaves, in the file's
+// order, and of the others only their masks and tile values (returned; null for the whole tree): the
+// leaves' allocation is most of a topology's read, and a rank's slabs sample a few of the nodes.
 template <typename GridT>
-void readTopologyOnAllThreads(GridT& grid, const std::string& path, const openvdb::io::File& file, const VdbGridLayout& layout)
+std::shared_ptr<UnreadLowersBase> readTopologyOnAllThreads(GridT& grid, const std::string& path, const TopologyFormat& format,
+                                                           const VdbGridLayout& layout, size_t part, size_t parts)
 {
     using TreeT = typename GridT::TreeType;
     using RootT = typename TreeT::RootNodeType;
     using UpperT = typename RootT::ChildNodeType;
     using LowerT = typename UpperT::ChildNodeType;
     using ValueT = typename GridT::ValueType;
-    const bool half = grid.saveFloatAsHalf();
+    const bool half = format.half;
 
-    TopologyStream top(path, file, layout, grid, nullptr);
+    TopologyStream top(path, format, nullptr);
     top.seek(layout.topologyPos);
     top.template value<int32_t>();  // the buffer count (TreeBase::readTopology): 1, checked by the walk
     const ValueT background = top.template value<ValueT>();
@@ -805,14 +965,11 @@ void readTopologyOnAllThreads(GridT& grid, const std::string& path, const openvd
         const bool active = top.template value<bool>();
         tree->root().addTile(openvdb::Coord(xyz[0], xyz[1], xyz[2]), value, active);
     }
-    struct Lower {
-        UpperT* parent;
-        openvdb::Coord origin;
-        std::unique_ptr<LowerT> node;
-    };
     std::vector<std::unique_ptr<UpperT>> uppers;
-    std::vector<Lower> lowers;
-    lowers.reserve(layout.lowerNodes.size());
+    std::vector<UpperT*> parents;
+    std::vector<openvdb::Coord> origins;
+    parents.reserve(layout.lowerNodes.size());
+    origins.reserve(layout.lowerNodes.size());
     std::unique_ptr<ValueT[]> values(new ValueT[UpperT::NUM_VALUES]);
     for (openvdb::Index32 c = 0; c < children && top.is; ++c) {
         const auto xyz = top.template value<std::array<openvdb::Int32, 3>>();
@@ -826,28 +983,101 @@ void readTopologyOnAllThreads(GridT& grid, const std::string& path, const openvd
             if (!childMask.isOn(n)) upper.addTile(n, values[n], valueMask.isOn(n));
         bool first = true;
         for (auto it = childMask.beginOn(); it; ++it, first = false) {
-            const size_t k = lowers.size();
+            const size_t k = origins.size();
             if (k >= layout.lowerNodes.size() || (first && uint64_t(top.is.tellg()) != layout.lowerNodes[k][0]))
                 throw std::runtime_error("its topology is not the walked one");
-            lowers.push_back({&upper, upper.offsetToGlobalCoord(it.pos()), nullptr});
+            parents.push_back(&upper);
+            origins.push_back(upper.offsetToGlobalCoord(it.pos()));
             top.seek(layout.lowerNodes[k][1]);
         }
     }
-    if (!top.is || lowers.size() != layout.lowerNodes.size()) throw std::runtime_error("its topology ends early");
-    std::atomic<bool> sound{true};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, lowers.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
-        TopologyStream in(path, file, layout, grid, &background);
-        for (size_t k = r.begin(); k != r.end() && sound; ++k) {
-            in.seek(layout.lowerNodes[k][0]);
-            lowers[k].node = std::make_unique<LowerT>(openvdb::PartialCreate(), lowers[k].origin, background);
-            lowers[k].node->readTopology(in.is, half);
-            if (!in.is || uint64_t(in.is.tellg()) != layout.lowerNodes[k][1]) sound = false;
+    if (!top.is || origins.size() != layout.lowerNodes.size()) throw std::runtime_error("its topology ends early");
+
+    std::shared_ptr<UnreadLowers<TreeT>> unread;
+    std::vector<size_t> own(origins.size());
+    for (size_t k = 0; k < own.size(); ++k) own[k] = k;
+    if (parts > 1) {
+        // Every node's masks and tile values, as InternalNode::readTopology reads them before its leaves.
+        unread = std::make_shared<UnreadLowers<TreeT>>();
+        unread->path = path;
+        unread->format = format;
+        unread->background = background;
+        unread->nodes.resize(origins.size());
+        std::atomic<bool> sound{true};
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, origins.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+            TopologyStream in(path, format, &background);
+            typename LowerT::NodeMaskType valueMask;
+            for (size_t k = r.begin(); k != r.end() && sound; ++k) {
+                auto& n = unread->nodes[k];
+                n.origin = origins[k];
+                n.bytes = layout.lowerNodes[k];
+                in.seek(n.bytes[0]);
+                n.childMask.load(in.is);
+                valueMask.load(in.is);
+                n.values.reset(new ValueT[LowerT::NUM_VALUES]);
+                openvdb::io::readCompressedValues(in.is, n.values.get(), LowerT::NUM_VALUES, valueMask, half);
+                n.activeTiles = !valueMask.isOff();
+                if (!in.is) sound = false;
+            }
+        });
+        if (!sound) throw std::runtime_error("its topology ends early");
+        // This part: a run of the nodes in the file's order, each weighing its leaves and one more (its
+        // tiles), the nodes whose weight starts in this part's share.
+        uint64_t weight = 0, leaves = 0;
+        for (const auto& n : unread->nodes) {
+            leaves += n.childMask.countOn();
+            weight += n.childMask.countOn() + 1;
         }
-    });
-    if (!sound) throw std::runtime_error("its topology ends early");
-    for (Lower& l : lowers) l.parent->addChild(l.node.release());
+        const uint64_t first = weight * part / parts, end = weight * (part + 1) / parts;
+        own.clear();
+        unread->origins.reserve(leaves);
+        for (size_t k = 0, at = 0; k < unread->nodes.size(); at += unread->nodes[k].childMask.countOn() + 1, ++k) {
+            const bool mine = at >= first && at < end;
+            if (mine) {
+                if (own.empty()) unread->ownFirst = unread->origins.size();
+                own.push_back(k);
+            }
+            for (auto it = unread->nodes[k].childMask.beginOn(); it; ++it) {
+                openvdb::Coord local;
+                LowerT::offsetToLocalCoord(it.pos(), local);
+                const openvdb::Coord o = origins[k] + (local << LowerT::ChildNodeType::TOTAL);
+                unread->origins.push_back({o.x(), o.y(), o.z()});
+            }
+            if (mine) unread->ownEnd = unread->origins.size();
+        }
+        if (own.empty()) unread->ownFirst = unread->ownEnd = 0;
+    }
+    std::vector<openvdb::Coord> ownOrigins;
+    std::vector<std::array<uint64_t, 2>> ownBytes;
+    for (size_t k : own) {
+        ownOrigins.push_back(origins[k]);
+        ownBytes.push_back(layout.lowerNodes[k]);
+    }
+    std::vector<std::unique_ptr<LowerT>> read = readLowerNodes<LowerT>(path, format, background, ownOrigins, ownBytes);
+    for (size_t j = 0; j < own.size(); ++j) {
+        if (unread && read[j]->getChildMask() != unread->nodes[own[j]].childMask)
+            throw std::runtime_error("its topology is not the walked one");
+        parents[own[j]]->addChild(read[j].release());
+    }
+    if (unread) {
+        // What stays unread: the nodes of the other parts, found by origin.
+        std::vector<typename UnreadLowers<TreeT>::Node> rest;
+        size_t next = 0;
+        for (size_t k = 0; k < unread->nodes.size(); ++k) {
+            if (next < own.size() && own[next] == k) {
+                ++next;
+                continue;
+            }
+            unread->activeTiles = unread->activeTiles || unread->nodes[k].activeTiles;
+            const openvdb::Coord& o = unread->nodes[k].origin;
+            unread->at[UnreadLowers<TreeT>::key(o.x(), o.y(), o.z())] = rest.size();
+            rest.push_back(std::move(unread->nodes[k]));
+        }
+        unread->nodes = std::move(rest);
+    }
     for (auto& upper : uppers) tree->root().addChild(upper.release());
     grid.setTree(tree);
+    return unread;
 }
 
 // A grid with the metadata and transform OpenVDB read when it listed the file's grids (`meta`), and the
@@ -856,16 +1086,22 @@ void readTopologyOnAllThreads(GridT& grid, const std::string& path, const openvd
 // allocation and a reference to the file's mapping per leaf, about 130 MB of the gyroid's peak)
 // serve only delayed loading, while this reader reads each leaf's voxels from the record the walk of
 // the stored tree found (StoredLeaves). The leaves come without voxel buffers (empty() until read).
+// Part `part` of `parts`: that share of the lower nodes, the others left unread (`unread`).
 openvdb::GridBase::Ptr readTopologyAlone(const std::string& path, const openvdb::io::File& file,
-                                         const openvdb::GridBase& meta, const VdbGridLayout& layout)
+                                         const openvdb::GridBase& meta, const VdbGridLayout& layout, size_t part,
+                                         size_t parts, std::shared_ptr<UnreadLowersBase>& unread)
 {
     openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(meta.type());
     grid->setSaveFloatAsHalf(meta.saveFloatAsHalf());
     for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)  // the per-leaf sizes serve the records' reads only
         if (it->first != openvdb::GridBase::META_FILE_DELAYED_LOAD) grid->insertMeta(it->first, *it->second);
     grid->setTransform(meta.transform().copy());
-    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) readTopologyOnAllThreads(*f, path, file, layout);
-    else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) readTopologyOnAllThreads(*d, path, file, layout);
+    const TopologyFormat format{file.libraryVersion(), file.fileVersion(), layout.compression, grid->saveFloatAsHalf(),
+                                grid->getGridClass()};
+    if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid))
+        unread = readTopologyOnAllThreads(*f, path, format, layout, part, parts);
+    else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid))
+        unread = readTopologyOnAllThreads(*d, path, format, layout, part, parts);
     else throw std::runtime_error("not a float or double grid");
     return grid;
 }
@@ -889,8 +1125,9 @@ openvdb::GridBase::ConstPtr defaultGrid(const openvdb::GridPtrVec& metas)
 
 // What both entry points share once the grid is in hand: the info the pipeline needs, and the
 // checks that need the topology (never a voxel buffer).
+// A tree read in part (`unread`) counts the file's leaves and tiles, not only its own.
 std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string& label, GridSource source,
-                                 double checkSeconds = 0.0)
+                                 double checkSeconds = 0.0, std::shared_ptr<UnreadLowersBase> unread = {})
 {
     VolumeInfo info;
     info.file = label;
@@ -906,17 +1143,19 @@ std::unique_ptr<Volume> wrapGrid(openvdb::GridBase::Ptr grid, const std::string&
     if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) {
         info.background = f->background();
         topologyInfo(*f, info);
-        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, source);
+        if (unread) info.leafCount = unread->origins.size();
+        vol = std::make_unique<VolumeT<openvdb::FloatGrid>>(f, info, source, unread);
     } else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) {
         info.background = d->background();
         topologyInfo(*d, info);
-        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, source);
+        if (unread) info.leafCount = unread->origins.size();
+        vol = std::make_unique<VolumeT<openvdb::DoubleGrid>>(d, info, source, unread);
     } else {
         throw InputError(label + ": grid '" + info.gridName + "' is not a float or double grid");
     }
     if (!std::isfinite(info.background))
         throw InputError(label + ": grid '" + info.gridName + "' has a non-finite background value");
-    if (info.activeVoxels == 0 && info.leafCount == 0)
+    if (info.activeVoxels == 0 && info.leafCount == 0 && !(unread && unread->activeTiles))
         throw InputError(label + ": grid '" + info.gridName + "' is empty (no active voxels)");
     // The topology's own box (leaves and active tiles), before any voxel is read.
     openvdb::CoordBBox box;
@@ -1059,20 +1298,23 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     const bool fromRecords = layout.checked && layout.topologyPos != 0 && !layout.recordStarts.empty() &&
                              layout.fileVersion >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION &&
                              openvdb::io::Archive::isDelayedLoadingEnabled();
+    // A distributed run's process reads its share of the lower nodes (readAround reads the others it needs).
+    const size_t part = agreement.agree ? agreement.part : 0, parts = agreement.agree ? agreement.parts : 1;
+    std::shared_ptr<UnreadLowersBase> unread;
     openvdb::GridBase::Ptr grid;
     const Stopwatch topology;
     try {
-        grid = fromRecords ? readTopologyAlone(path, file, *meta, layout) : file.readGrid(meta->getName());
+        grid = fromRecords ? readTopologyAlone(path, file, *meta, layout, part, parts, unread) : file.readGrid(meta->getName());
     } catch (const std::bad_alloc&) {
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (out of memory reading its topology)");
     } catch (const std::exception& e) {
         throw InputError(path + ": cannot read grid '" + meta->getName() + "' (" + oneLine(e.what()) + ")");
     }
     if (!grid) throw InputError(path + ": cannot read grid '" + meta->getName() + "'");
-    if (layout.checked && grid->baseTree().leafCount() != layout.leafCount)
+    const size_t leavesRead = unread ? unread->origins.size() : size_t(grid->baseTree().leafCount());
+    if (layout.checked && (leavesRead != layout.leafCount || (unread && grid->baseTree().leafCount() != unread->ownEnd - unread->ownFirst)))
         throw InputError(path + ": truncated or damaged OpenVDB file (grid '" + meta->getName() + "': " +
-                         std::to_string(grid->baseTree().leafCount()) + " leaves read, " +
-                         std::to_string(layout.leafCount) + " stored)");
+                         std::to_string(leavesRead) + " leaves read, " + std::to_string(layout.leafCount) + " stored)");
     try {
         checkTransform(grid->transform());
     } catch (const InputError& e) {
@@ -1081,7 +1323,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
 
     const double topologySeconds = fromRecords ? topology.seconds() : 0.0;
     std::unique_ptr<Volume> volume =
-        wrapGrid(grid, path, fromRecords ? GridSource::TopologyAlone : GridSource::DelayedLoad, checkSeconds);
+        wrapGrid(grid, path, fromRecords ? GridSource::TopologyAlone : GridSource::DelayedLoad, checkSeconds, unread);
     volume->mInfo.topologySeconds = topologySeconds;
     volume->mUnwalked = layout.unwalked;
     if (layout.checked && !layout.recordStarts.empty()) {
@@ -1101,11 +1343,16 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
             }
             same = same && (walked.empty() || i == walked.size());
         };
-        if (walked.empty()) origins.reserve(layout.leafCount);
-        if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) collect(f->tree());
-        else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) collect(d->tree());
+        if (unread) {
+            // Read in part: the leaves, all on disk, as the walked topology lists them.
+            onDisk = true;
+        } else {
+            if (walked.empty()) origins.reserve(layout.leafCount);
+            if (auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(grid)) collect(f->tree());
+            else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) collect(d->tree());
+        }
         if (onDisk && same) {
-            auto stored = std::make_shared<const StoredLeaves>(path, layout, walked.empty() ? origins : walked);
+            auto stored = std::make_shared<const StoredLeaves>(path, layout, unread ? unread->origins : walked.empty() ? origins : walked);
             if (!stored->empty()) volume->mStored = std::move(stored);
         }
     }

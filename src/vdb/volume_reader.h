@@ -87,6 +87,11 @@ public:
     // among processes, the kept leaves' records this process did not walk are walked first.
     // @throw InputError for a damaged record among them.
     virtual void keepLeaves(const std::function<bool(const std::array<int32_t, 3>& leafOrigin)>& keep) = 0;
+    // Reads the topology this process left on disk wherever the samples of these blocks reach: a
+    // distributed run's rank reads its share of the lower nodes as it opens the file and the others its
+    // slabs sample once it knows them (before keepLeaves). Nothing to do for a whole tree.
+    // @throw InputError where the file no longer holds what the open found.
+    virtual void readAround(const std::array<int32_t, 3>* blocks, size_t count) { (void)blocks, (void)count; }
     // How many of those the tiles' faces add (countTileShellBlocks), without listing them.
     virtual uint64_t tileShellBlocks(const Classifier& c) const = 0;
     // Fills the 9^3 samples of the block at `origin`. Thread-safe. @throw InputError on NaN/Inf or
