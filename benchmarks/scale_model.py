@@ -24,6 +24,13 @@ Model, for W workers (ranks of one thread; the tree's rank shares of pipeline/sl
              zero-area scan over every face and the output mesh's collection (seconds_final_parallel) run
              on all of a process's threads: divided among them in the threads' model and the bound, whole
              for ranks of one thread.
+  measured set-up: where an mpirun report of the same run lists each rank's set-up (rank_setup_cpu_seconds:
+             its CPU seconds until its leaves are laid out, less those spent in the ranks' collectives; each
+             rank reads its share of the topology and lists its share of the blocks, pipeline.cpp), the
+             ranks' set-up is the line S(W) = a + b / W through the one process's set-up and layout (W = 1)
+             and the largest rank's at each measured rank count, least squares in 1 / W; it replaces the
+             set-up, leaf walk and layout terms above for ranks of one thread (the count and the samplers
+             stay divided by W). Ranks of RANK_THREADS threads keep the terms above.
 The transfer of a node between ranks is taken at BANDWIDTH bytes/s. Its bytes: with --messages, the
 line through the messages of an mpirun run of many ranks on the same volume and options (each rank > 0
 sends its top node to its parent: rank_bytes_sent against that node's slab count, least squares: a
@@ -49,8 +56,9 @@ Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound,
 the critical paths at 16 workers,
 the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
 and writes an SVG plot.
-Usage: scale_model.py [--messages MPI_REPORT.json] REPORT.json WALL_SECONDS LABEL
-                      [[--messages MPI_REPORT2.json] REPORT2.json WALL2 LABEL2 ...] OUT.svg
+Usage: scale_model.py [--messages MPI_REPORT.json] [--setup MPI_REPORT.json ...] REPORT.json WALL_SECONDS LABEL
+                      [[--messages MPI_REPORT2.json] ... REPORT2.json WALL2 LABEL2 ...] OUT.svg
+(--messages's report gives set-up points too where it lists them; --setup adds more rank counts.)
 """
 import heapq
 import json
@@ -116,7 +124,17 @@ def message_fit(mpi):
     return max(0.0, my - slope * mx), slope, points
 
 
-def model(report, wall, even=False, messages=None):
+def setup_fit(points):
+    """(a, b) of S(W) = a + b / W, least squares in 1 / W through the (W, seconds) points."""
+    xs = [1.0 / w for w, _ in points]
+    ys = [y for _, y in points]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    sxx = sum((x - mx) ** 2 for x in xs)
+    b = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sxx if sxx > 0 else 0.0
+    return my - b * mx, b
+
+
+def model(report, wall, even=False, messages=None, setup_points=None):
     first = report["tree_first_slab"]
     end = report["tree_end_slab"]
     secs = report["tree_seconds"]
@@ -169,6 +187,10 @@ def model(report, wall, even=False, messages=None):
         return seconds + node[(l, r)], below + [f"join [{l}, {r}) {node[(l, r)]:.2f} s"]
 
     one = setup + count + layout + serial(0, slabs) + final
+    fit = None
+    if setup_points:
+        samplers = report.get("seconds_samplers", 0.0)
+        fit = setup_fit([(1, setup + layout - samplers)] + setup_points)
     rows = []
     for w in WORKERS:
         start = setup + (count + layout) / min(w, slabs)
@@ -177,6 +199,8 @@ def model(report, wall, even=False, messages=None):
         threads, threads_path = threads_tree(node, slabs, w)
         threads_final = final - scan + scan / w
         t = start - leaf_walk * (1 - walk_share(w)) + ranks + final
+        if fit:
+            t = fit[0] + fit[1] / w + (count + report.get("seconds_samplers", 0.0)) / min(w, slabs) + ranks + final
         tt = threads_start + threads + threads_final
         tb = threads_start + schedule_bound(node, slabs, w) + threads_final
         # Ranks of RANK_THREADS threads (fewer workers: one process): the set-up's threaded parts and
@@ -188,7 +212,7 @@ def model(report, wall, even=False, messages=None):
         rows.append((w, t, one / t, tt, one / tt, tb, one / tb, th, one / th))
         if w == PATH_WORKERS:
             paths = ranks_path, threads_path, hybrid_path
-    return setup + count + layout, serial(0, slabs), final, rows, paths
+    return setup + count + layout, serial(0, slabs), final, rows, paths, fit
 
 
 def schedule_bound(node, slabs, workers):
@@ -292,22 +316,35 @@ def svg(curves, path):
     open(path, "w").write("\n".join(out) + "\n")
 
 
+def setup_point(mpi, path, report):
+    """(ranks, the largest rank's set-up seconds) of an mpirun report of the same run, or None."""
+    if int(mpi["slabs"]) != int(report["slabs"]) or mpi["faces_out"] != report["faces_out"]:
+        sys.exit(f"{path}: not a run of the same volume and options")
+    measured = mpi.get("rank_setup_cpu_seconds", [])
+    return (int(mpi["ranks"]), max(measured)) if measured and max(measured) > 0 else None
+
+
 def main(argv):
-    args, groups, messages = argv[1:-1], [], None
+    args, groups, messages, setups = argv[1:-1], [], None, []
     while args:
-        if args[0] == "--messages" and len(args) > 1:
-            messages, args = args[1], args[2:]
+        if args[0] in ("--messages", "--setup") and len(args) > 1:
+            if args[0] == "--messages":
+                messages = args[1]
+            else:
+                setups.append(args[1])
+            args = args[2:]
             continue
         if len(args) < 3:
             sys.exit(__doc__)
-        groups.append((args[0], float(args[1]), args[2], messages))
-        args, messages = args[3:], None
-    if not groups or messages:
+        groups.append((args[0], float(args[1]), args[2], messages, setups))
+        args, messages, setups = args[3:], None, []
+    if not groups or messages or setups:
         sys.exit(__doc__)
     out = argv[-1]
     curves = []
-    for path, wall, label, messages in groups:
+    for path, wall, label, messages, setups in groups:
         report = json.load(open(path))
+        setup_pts = [p for p in (setup_point(json.load(open(f)), f, report) for f in ([messages] if messages else []) + setups) if p]
         fit = None
         if messages:
             mpi = json.load(open(messages))
@@ -318,7 +355,12 @@ def main(argv):
             print(f"{label}: messages of {mpi['ranks']} ranks (slabs: MB) " +
                   ", ".join(f"{x}: {y / 1e6:.1f}" for x, y in sorted(points)) +
                   f"; fitted {fixed / 1e6:.2f} MB + {per_slab / 1e6:.3f} MB a slab, at {BANDWIDTH / 1e9:g} GB/s")
-        setup, tree, final, rows, (critical, thread_path, hybrid_path) = model(report, wall, messages=fit)
+        setup, tree, final, rows, (critical, thread_path, hybrid_path), line = model(report, wall, messages=fit,
+                                                                                    setup_points=setup_pts)
+        if line:
+            print(f"{label}: each rank's set-up (the largest of the ranks' CPU seconds until its leaves are laid out): " +
+                  ", ".join(f"{w} ranks {y:.2f} s" for w, y in sorted(setup_pts)) + f"; one process {line[0] + line[1]:.2f} s"
+                  f" (set-up and layout); fitted {line[0]:.3f} + {line[1]:.3f} / W s")
         print(f"{label}: {report['slabs']} slabs; setup {setup:.2f} s, tree {tree:.2f} s (work), final + write {final:.2f} s"
               f" (of which the zero-area scan and the mesh's collection {report.get('seconds_final_parallel', 0.0):.2f} s, divided among threads)")
         pieces = [(k, report[f"seconds_{k}"]) for k in ("open", "check", "topology", "blocks", "cut", "samplers", "count", "layout") if f"seconds_{k}" in report]
@@ -332,7 +374,7 @@ def main(argv):
         print(f"critical path at {PATH_WORKERS} ranks: " + ", then ".join(critical))
         print(f"critical path at {PATH_WORKERS} workers as ranks of {RANK_THREADS} threads: " + ", then ".join(hybrid_path))
         print(f"critical path at {PATH_WORKERS} threads (after the set-up): " + ", then ".join(thread_path))
-        even = {row[0]: row for row in model(report, wall, even=True, messages=fit)[3]}
+        even = {row[0]: row for row in model(report, wall, even=True, messages=fit, setup_points=setup_pts)[3]}
         print("slabs of equal work instead (each the mean of the measured slabs), ranks / threads: " +
               ", ".join(f"{w} workers {even[w][2]:.1f}x / {even[w][4]:.1f}x" for w in (8, 16, 32, 64)))
         print()

@@ -183,6 +183,9 @@ struct Report {
     // A distributed run (mpirun): how many processes, and each one's seconds and peak memory.
     uint64_t ranks = 1;
     std::vector<double> rankSeconds, rankPeakRssMb, rankBytesSent;
+    // Each rank's CPU seconds until its leaves are laid out, less those spent waiting in the ranks'
+    // collectives: its share of the set-up, for the scaling model of docs/scale.md.
+    std::vector<double> rankSetupCpuSeconds;
     // Seconds of each node of the merge tree this process made: a slab's extraction (end = first + 1)
     // or the join of two siblings; for the scaling model of docs/scale.md.
     struct TreeNode {

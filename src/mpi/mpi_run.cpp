@@ -4,6 +4,7 @@
 #include "vdb_isosimp/mpi_run.h"
 
 #include "pipeline/pipeline_internal.h"
+#include "pipeline/run_stats.h"
 #include "vdb_isosimp/errors.h"
 
 #include <algorithm>
@@ -62,9 +63,24 @@ public:
     MpiChannel(int rank, int ranks) : mRank(rank), mRanks(ranks) {}
     size_t rank() const override { return size_t(mRank); }
     size_t ranks() const override { return size_t(mRanks); }
+    double collectiveCpuSeconds() const override { return mCollectiveCpu; }
+
+    // Counts the CPU seconds of a collective while it lives.
+    class Collective {
+    public:
+        explicit Collective(MpiChannel& c) : mChannel(c), mStart(processCpuSeconds()) {}
+        ~Collective() { mChannel.mCollectiveCpu += processCpuSeconds() - mStart; }
+        Collective(const Collective&) = delete;
+        Collective& operator=(const Collective&) = delete;
+
+    private:
+        MpiChannel& mChannel;
+        double mStart;
+    };
 
     std::array<uint64_t, 2> agree(const std::string& error, uint64_t blocks, std::array<uint64_t, 2> counts) override
     {
+        const Collective timed(*this);
         constexpr size_t kWords = 4;
         const uint64_t mine[kWords] = {error.empty() ? 0u : 1u, blocks, counts[0], counts[1]};
         std::vector<uint64_t> all(kWords * size_t(mRanks));
@@ -101,6 +117,7 @@ public:
 
     std::array<double, 2> agreeRange(std::array<double, 2> range, bool failed) override
     {
+        const Collective timed(*this);
         // The largest of: a failure, minus the smallest value, the largest value.
         const double mine[3] = {failed ? 1.0 : 0.0, -range[0], range[1]};
         double most[3] = {0.0, 0.0, 0.0};
@@ -111,6 +128,7 @@ public:
 
     void gatherBlocks(std::vector<std::array<int32_t, 3>>& blocks, std::vector<size_t>& runEnds, bool failed) override
     {
+        const Collective timed(*this);
         // Each rank's failure and block count, then the blocks themselves (counts in blocks: MPI's
         // ints count up to 2^31 of them a rank).
         const uint64_t mine[2] = {failed ? 1u : 0u, failed ? 0u : blocks.size()};
@@ -169,6 +187,7 @@ public:
 
 private:
     int mRank, mRanks;
+    double mCollectiveCpu = 0.0;
 };
 
 } // namespace
@@ -200,7 +219,8 @@ Result MpiRun::simplifyFile(const std::string& path, const Options& options, Pro
     TreeAgreement agreement;
     agreement.part = size_t(mRank);
     agreement.parts = size_t(mRanks);
-    agreement.agree = [](bool walked, bool sound, uint64_t digest) {
+    agreement.agree = [&channel](bool walked, bool sound, uint64_t digest) {
+        const MpiChannel::Collective timed(channel);
         // The largest of: "did not walk", "not sound", the digest, its complement (so the smallest digest too).
         const uint64_t mine[4] = {walked ? 0u : 1u, sound ? 0u : 1u, digest, ~digest};
         uint64_t most[4] = {0, 0, 0, 0};

@@ -103,6 +103,12 @@ public:
     void countFacesExactly();
     void countFacesOver(uint64_t sampleRuns);
     void agreeAmongRanks(const std::string& error);
+    // The end of a rank's set-up (its share of the topology read, its blocks listed and merged, the cut,
+    // its leaves laid out): the process's CPU seconds since the run began, less those spent in the
+    // ranks' collectives (RankChannel::collectiveCpuSeconds), for the scaling model (docs/scale.md).
+    void setupDone();
+    double mSetupCpu = 0.0;
+    const double mStartCpu = processCpuSeconds();
     void setTarget();
     bool runTree();
     Result finalPass();
@@ -171,9 +177,9 @@ private:
     size_t slabOf(size_t block) const;
     void parkOrKeep(size_t leaf, const BlockOrigin& origin);
     size_t mRankBlocks = 0;  // blocks this process extracts (all of them without ranks)
-    // Seconds, peak memory (MB) and bytes sent of each rank below this one, gathered up the tree with
-    // the meshes; and the seconds of each node made here.
-    std::vector<std::array<double, 3>> mRanksBelow;
+    // Seconds, peak memory (MB), bytes sent and set-up CPU seconds (setupDone) of each rank below this
+    // one, gathered up the tree with the meshes; and the seconds of each node made here.
+    std::vector<std::array<double, 4>> mRanksBelow;
     std::mutex mTreeMutex;
     std::vector<Report::TreeNode> mTree;
     void timed(size_t l, size_t r, double start);
@@ -395,6 +401,11 @@ void PipelineRun::keepOwnLeaves()
     mVol->keepLeaves(keep);
     // Each rank reads and lays out its own share: the scaling model divides it among workers.
     mResult.report.secondsLayout = mClock.seconds() - start;
+}
+
+void PipelineRun::setupDone()
+{
+    if (mRanks) mSetupCpu = processCpuSeconds() - mStartCpu - mRanks->collectiveCpuSeconds();
 }
 
 // Ranks agree that each has the same block list before the tree: a rank that could not start
@@ -762,8 +773,8 @@ void PipelineRun::parkOrKeep(size_t leaf, const BlockOrigin& origin)
 // What a rank sends up the tree: the seconds and peak memory of every rank below it, then its node.
 std::vector<char> PipelineRun::rankMessage(std::vector<SlabPiece>&& levels) const
 {
-    std::vector<std::array<double, 3>> ranks = mRanksBelow;
-    ranks.insert(ranks.begin(), {mClock.seconds(), peakRssMb(), 0.0});
+    std::vector<std::array<double, 4>> ranks = mRanksBelow;
+    ranks.insert(ranks.begin(), {mClock.seconds(), peakRssMb(), 0.0, mSetupCpu});
     std::vector<char> out;
     const uint64_t n = ranks.size();
     out.insert(out.end(), reinterpret_cast<const char*>(&n), reinterpret_cast<const char*>(&n) + sizeof n);
@@ -788,10 +799,10 @@ std::vector<SlabPiece> PipelineRun::readRankMessage(const std::vector<char>& byt
     uint64_t n = 0;
     if (bytes.size() < sizeof n) throw std::runtime_error("merge tree message: bytes end early");
     std::memcpy(&n, bytes.data(), sizeof n);
-    const size_t head = sizeof n + n * sizeof(std::array<double, 3>);
+    const size_t head = sizeof n + n * sizeof(std::array<double, 4>);
     if (n > bytes.size() || bytes.size() < head) throw std::runtime_error("merge tree message: bytes end early");
-    std::vector<std::array<double, 3>> ranks(n);
-    std::memcpy(ranks.data(), bytes.data() + sizeof n, n * sizeof(std::array<double, 3>));
+    std::vector<std::array<double, 4>> ranks(n);
+    std::memcpy(ranks.data(), bytes.data() + sizeof n, n * sizeof(std::array<double, 4>));
     mRanksBelow.insert(mRanksBelow.end(), ranks.begin(), ranks.end());
     size_t at = head;
     const auto count = [&] {
@@ -890,12 +901,13 @@ Result PipelineRun::rankReport()
     rep.peakRssMb = peakRssMb();
     rep.ranks = mRanks ? mRanks->ranks() : 1;
     if (mRanks) {
-        std::vector<std::array<double, 3>> ranks = mRanksBelow;
-        ranks.insert(ranks.begin(), {rep.seconds, rep.peakRssMb, 0.0});
+        std::vector<std::array<double, 4>> ranks = mRanksBelow;
+        ranks.insert(ranks.begin(), {rep.seconds, rep.peakRssMb, 0.0, mSetupCpu});
         for (const auto& r : ranks) {
             rep.rankSeconds.push_back(r[0]);
             rep.rankPeakRssMb.push_back(r[1]);
             rep.rankBytesSent.push_back(r[2]);
+            rep.rankSetupCpuSeconds.push_back(r[3]);
         }
     }
     rep.tree = std::move(mTree);
@@ -922,6 +934,7 @@ Result runPipeline(const VolumeOpener& open, const std::string& path, const Opti
         run.listBlocks();
         run.splitSlabs();
         run.keepOwnLeaves();
+        run.setupDone();
         run.countFacesForTarget();
     } catch (const PeerFailed&) {
         run.agreeAmongRanks({});  // another rank failed first: agree() reports its message

@@ -42,6 +42,9 @@ public:
     virtual ~RankChannel() = default;
     virtual size_t rank() const = 0;
     virtual size_t ranks() const = 0;
+    // CPU seconds this process has spent in the collectives below and in the agreement on the stored
+    // tree (waiting for the other ranks included), so far.
+    virtual double collectiveCpuSeconds() const { return 0.0; }
     // Called by every rank once its block list is known (`error` empty) or its start failed (the
     // message): when all agree on `blocks`, returns the sums of every rank's `counts` (what each
     // counted for a face target); otherwise throws on every rank, on rank 0 the first failed rank's

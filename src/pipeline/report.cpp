@@ -71,6 +71,7 @@ std::vector<ReportField> reportFields(const Report& r, const Options& o)
             reals("rank_seconds", r.rankSeconds),
             reals("rank_peak_rss_mb", r.rankPeakRssMb),
             reals("rank_bytes_sent", r.rankBytesSent),
+            reals("rank_setup_cpu_seconds", r.rankSetupCpuSeconds),
             reals("tree_first_slab", column([](const Report::TreeNode& n) { return double(n.firstSlab); })),
             reals("tree_end_slab", column([](const Report::TreeNode& n) { return double(n.endSlab); })),
             reals("tree_seconds", column([](const Report::TreeNode& n) { return n.seconds; }))};

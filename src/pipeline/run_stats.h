@@ -7,4 +7,7 @@ namespace vdb_isosimp {
 // Peak resident set size of this process so far, in MiB.
 double peakRssMb();
 
+// CPU seconds (user and system) of this process so far, all its threads.
+double processCpuSeconds();
+
 } // namespace vdb_isosimp
