@@ -95,36 +95,62 @@ bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const Block
     return end >= blocks.size() || order(eb.last, blocks[end]);
 }
 
+namespace {
+
+// A block on its way through arrangeBlocks: its place in the z/y/x order it came in, and a key that
+// orders blocks as lexBefore on the axis of the node it is in does (one integer compare instead of up to three).
+struct Placed {
+    uint64_t key;
+    BlockOrigin origin;
+    uint32_t place;
+};
+
+// lexBefore(a, b, axis) is lexKey(a, axis) < lexKey(b, axis): the axis, then the others in z, y, x
+// order, 21 bits each (block origins lie within the vertex keys' range of +-2^19, edge_key.h).
+uint64_t lexKey(const BlockOrigin& b, int axis)
+{
+    const int first = axis == 2 ? 1 : 2, second = axis == 0 ? 1 : 0;
+    const auto bits = [](int32_t v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1FFFFF); };
+    return bits(b[size_t(axis)]) << 42 | bits(b[size_t(first)]) << 21 | bits(b[size_t(second)]);
+}
+
+} // namespace
+
 BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace)
 {
     BlockOrder order;
     const size_t n = blocks.size();
-    // Each block travels with its place in the z/y/x order it came in, for sweepPlace.
-    std::vector<std::pair<BlockOrigin, uint32_t>> placed(n);
-    for (size_t i = 0; i < n; ++i) placed[i] = {blocks[i], uint32_t(i)};
+    std::vector<Placed> placed(n);
+    for (size_t i = 0; i < n; ++i) placed[i] = {0, blocks[i], uint32_t(i)};
     const auto at = [&](size_t s) { return placed.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
+    const auto byKey = [](const Placed& a, const Placed& b) { return a.key < b.key; };
+    const auto keyOn = [](auto first, auto last, int axis) {
+        for (auto it = first; it != last; ++it) it->key = lexKey(it->origin, axis);
+    };
     // Nodes are numbered in pre-order, so a subtree's numbers follow from its slab range alone: the two
     // halves of every node are arranged at once, on as many threads as the run has (the millions of
     // blocks of a large volume otherwise sort on one while every rank waits for its cut).
     const std::function<void(size_t, size_t, uint32_t)> build = [&](size_t l, size_t r, uint32_t id) {
         const auto first = at(l), last = at(r);
         if (r - l < 2) {
-            std::sort(first, last, [](const auto& a, const auto& b) { return lexBefore(a.first, b.first, 2); });
+            keyOn(first, last, 2);
+            std::sort(first, last, byKey);
             return;
         }
-        BlockOrigin lo = first->first, hi = first->first;
+        BlockOrigin lo = first->origin, hi = first->origin;
         for (auto it = first; it != last; ++it)
             for (int k = 0; k < 3; ++k) {
-                lo[size_t(k)] = std::min(lo[size_t(k)], it->first[size_t(k)]);
-                hi[size_t(k)] = std::max(hi[size_t(k)], it->first[size_t(k)]);
+                lo[size_t(k)] = std::min(lo[size_t(k)], it->origin[size_t(k)]);
+                hi[size_t(k)] = std::max(hi[size_t(k)], it->origin[size_t(k)]);
             }
         int axis = 2;  // the longest extent; z, then y, then x on ties
         for (int k = 1; k >= 0; --k)
             if (hi[size_t(k)] - lo[size_t(k)] > hi[size_t(axis)] - lo[size_t(axis)]) axis = k;
         const size_t m = mergeSplit(l, r);
-        std::nth_element(first, at(m), last, [axis](const auto& a, const auto& b) { return lexBefore(a.first, b.first, axis); });
+        keyOn(first, last, axis);
+        std::nth_element(first, at(m), last, byKey);
         const uint32_t left = id + 1, right = id + uint32_t(2 * (m - l));  // the left subtree has 2 (m - l) - 1 nodes
-        order.nodes[id] = {axis, at(m)->first, left, right};
+        order.nodes[id] = {axis, at(m)->origin, left, right};
         tbb::parallel_invoke([&] { build(l, m, left); }, [&] { build(m, r, right); });
     };
     if (slabs >= 2 && n >= 2) {
@@ -133,8 +159,8 @@ BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::ve
     }
     if (sweepPlace) sweepPlace->resize(n);
     for (size_t j = 0; j < n; ++j) {
-        blocks[j] = placed[j].first;
-        if (sweepPlace) (*sweepPlace)[j] = placed[j].second;
+        blocks[j] = placed[j].origin;
+        if (sweepPlace) (*sweepPlace)[j] = placed[j].place;
     }
     return order;
 }

@@ -280,6 +280,8 @@ struct UnreadLowersBase {
     std::vector<std::array<int32_t, 3>> origins;
     size_t ownFirst = 0, ownEnd = 0;
     bool activeTiles = false;  // whether an unread node holds an active tile
+    // The runs of `origins` read since (Volume::readAround): with [ownFirst, ownEnd), what the tree holds.
+    std::vector<std::array<size_t, 2>> readRuns;
 };
 
 template <typename TreeT>
@@ -292,6 +294,7 @@ struct UnreadLowers final : UnreadLowersBase {
         typename LowerT::NodeMaskType childMask;
         std::unique_ptr<ValueT[]> values;
         bool activeTiles = false;
+        size_t firstLeaf = 0;  // its first leaf's place in `origins`
     };
     std::string path;
     TopologyFormat format;
@@ -346,8 +349,18 @@ public:
     {
         if (!mFromFile) return;  // a caller's grid stays whole
         if (mUnwalked) {
+            // A tree read in part keeps what it holds at most: the others are not asked about.
+            std::vector<char> held;
+            if (mUnreadLowers) {
+                held.assign(mUnreadLowers->origins.size(), 0);
+                std::fill(held.begin() + std::ptrdiff_t(mUnreadLowers->ownFirst), held.begin() + std::ptrdiff_t(mUnreadLowers->ownEnd), 1);
+                for (const auto& run : mUnreadLowers->readRuns)
+                    std::fill(held.begin() + std::ptrdiff_t(run[0]), held.begin() + std::ptrdiff_t(run[1]), 1);
+            }
             KeptRecordsWalk walk(*mUnwalked);
-            forEachStoredLeaf([&](const std::array<int32_t, 3>& origin, size_t) { walk.leaf(origin, !keep || keep(origin)); });
+            forEachStoredLeaf([&](const std::array<int32_t, 3>& origin, size_t i) {
+                walk.leaf(origin, (held.empty() || held[i]) && (!keep || keep(origin)));
+            });
             walk.walk();
             mUnwalked.reset();
         }
@@ -403,6 +416,8 @@ public:
                 throw InputError(mInfo.file + ": truncated or damaged OpenVDB file (grid '" + mInfo.gridName +
                                  "': its topology changed while it was read)");
             UpperT* upper = mGrid->tree().root().template probeNode<UpperT>(origins[j]);
+            const auto& node = unread.nodes[which[j]];
+            unread.readRuns.push_back({node.firstLeaf, node.firstLeaf + node.childMask.countOn()});
             if (!upper || !upper->addChild(read[j].release()))
                 throw InputError(mInfo.file + ": grid '" + mInfo.gridName + "': its topology is not the walked one");
         }
@@ -1033,6 +1048,7 @@ std::shared_ptr<UnreadLowersBase> readTopologyOnAllThreads(GridT& grid, const st
         unread->origins.reserve(leaves);
         for (size_t k = 0, at = 0; k < unread->nodes.size(); at += unread->nodes[k].childMask.countOn() + 1, ++k) {
             const bool mine = at >= first && at < end;
+            unread->nodes[k].firstLeaf = unread->origins.size();
             if (mine) {
                 if (own.empty()) unread->ownFirst = unread->origins.size();
                 own.push_back(k);
