@@ -135,6 +135,11 @@ for V in fb sph; do
   done
   echo "$V, its lower nodes divided among ranks: 3 and 8 ranks, same bytes as one process"
 done
+# One slab: rank 0 holds every block and reads every node they sample, the others none.
+"$B/vdb_isosimp" "$W/sph.vdb" --ratio 0.05 --slab-blocks 100000 -q -o "$W/one_slab.ply"
+mpirun -np 3 "$B/vdb_isosimp" "$W/sph.vdb" --ratio 0.05 --slab-blocks 100000 --threads 1 -q -o "$W/one_slab_3.ply"
+cmp "$W/one_slab.ply" "$W/one_slab_3.ply" || fail "one slab: 3 ranks wrote other bytes"
+echo "one slab on 3 ranks: same bytes as one process"
 
 # Damaged leaf records (at a quarter and at 60 % of the file; the leaf at z = 96 of 112 only the last
 # rank reads): every rank walks the records before OpenVDB reads the tree, and the run ends with the

@@ -554,25 +554,22 @@ TEST(DamagedVdb, ASharedWalkLeavesNoReadLeafUnwalked)
     {
         const auto a = share(0, true, calls, sound);
         auto v = vdb_isosimp::Volume::open(d + "/bad.vdb", "", a);
+        // The open read part 0's share of the topology; the blocks of both parts bring in the rest.
+        const std::array<int32_t, 3> blocks[] = {{8, 0, 0}, {280000, 0, 0}};
+        v->readAround(blocks, 2);
         try {
-            v->keepLeaves({});  // every leaf: the damaged one too
+            v->keepLeaves({});  // every leaf it holds: the damaged one too
             ADD_FAILURE() << "the damaged record went unwalked";
         } catch (const vdb_isosimp::InputError& e) {
             EXPECT_NE(std::string(e.what()).find(damaged), std::string::npos) << e.what();
         }
     }
-    // A value-range scan reads a part of the leaves in the tree's order: the records of any of them
-    // outside the walked part are walked first (part 1's scan, here on part 0's walk, meets the damage).
+    // A value-range scan reads the leaves of the share of the topology the open read: here the walked
+    // part's, whose records are sound.
     {
         const auto a = share(0, true, calls, sound);
         auto v = vdb_isosimp::Volume::open(d + "/bad.vdb", "", a);
         EXPECT_NO_THROW(v->valueRange(0, 2));
-        try {
-            v->valueRange(1, 2);
-            ADD_FAILURE() << "the damaged record went unwalked";
-        } catch (const vdb_isosimp::InputError& e) {
-            EXPECT_NE(std::string(e.what()).find(damaged + " ("), std::string::npos) << e.what();
-        }
     }
     // Part 1 holds the damaged record: it says so, and every process walks every record, as one does.
     calls = 0;

@@ -92,7 +92,7 @@ class RankModel(unittest.TestCase):
     def test_two_ranks(self):
         # Rank 0: slabs 0, 1 and [0, 2) = 4.5 s; rank 1: 2.5 s plus its transfer (no faces: 0); root 0.5.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
-        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         self.assertAlmostEqual(tree, 7.5)
         self.assertAlmostEqual(final, 0.75)
         by_workers = {row[0]: row for row in rows}
@@ -107,7 +107,7 @@ class RankModel(unittest.TestCase):
         # threads make it 0.1 s, four 0.05 s; ranks of one thread pay it whole, and one worker is the serial run either way.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
         rep["seconds_final_parallel"] = 0.2
-        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         by_workers = {row[0]: row for row in rows}
         self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
         self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final - 0.1)
@@ -116,13 +116,28 @@ class RankModel(unittest.TestCase):
         self.assertAlmostEqual(by_workers[1][2], 1.0)
         self.assertAlmostEqual(by_workers[1][4], 1.0)
 
+    def test_measured_setup_of_ranks(self):
+        # The one process's set-up (0.75 s: seconds less slabs and final) at W = 1 and a rank's measured
+        # 0.3 s at W = 4 fit S(W) = 0.15 + 0.6 / W: 4 ranks pay 0.3 s, 2 ranks 0.45 s, one worker the serial run.
+        rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
+        setup, tree, final, rows, _, line = scale_model.model(rep, rep["seconds"] + 0.5, setup_points=[(4, 0.3)])
+        self.assertAlmostEqual(setup, 0.75)
+        self.assertAlmostEqual(line[0], 0.15)
+        self.assertAlmostEqual(line[1], 0.6)
+        by_workers = {row[0]: row for row in rows}
+        self.assertAlmostEqual(by_workers[4][1], 0.3 + 4.0 + final)  # [0, 2) 3 + 0.5, the root 0.5 above it
+        self.assertAlmostEqual(by_workers[2][1], 0.45 + 5.0 + final)  # each rank two slabs and their join
+        self.assertAlmostEqual(by_workers[1][2], 1.0)
+        # The threads' model does not use it.
+        self.assertAlmostEqual(by_workers[2][3], setup + 4.0 + final)
+
     def test_leaf_walk_shared_among_ranks(self):
         # 1 s of checking, CHECK_SERIAL of it the topology every rank walks: of the rest, the leaf
         # records, a rank walks its part and its kept leaves' (2/R): all of it on 2 ranks, half on 4.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
         rep["seconds_check"] = 1.0
         rep["seconds_blocks"] = 0.4
-        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         by_workers = {row[0]: row for row in rows}
         shared = 1.0 - scale_model.CHECK_SERIAL
         self.assertAlmostEqual(by_workers[2][1], setup + 5.0 + final)
@@ -146,7 +161,7 @@ class MixedModel(unittest.TestCase):
         saved = scale_model.RANK_THREADS
         scale_model.RANK_THREADS = 2
         try:
-            setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5)
+            setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5)
         finally:
             scale_model.RANK_THREADS = saved
         by_workers = {row[0]: row for row in rows}
@@ -184,7 +199,7 @@ class Messages(unittest.TestCase):
         # Two ranks: rank 1 makes [2, 4) (1 + 1 + 0.5 s) and sends it, 1e9 + 1e9 * 2 bytes at 1 GB/s = 3 s,
         # while rank 0 makes [0, 2) (3 + 1 + 0.5 s): the root waits for max(4.5, 2.5 + 3) = 5.5 s, then 0.5 s.
         rep = report([3, 1, 1, 1], [0.5, 0.5, 0.5])
-        setup, tree, final, rows, _ = scale_model.model(rep, rep["seconds"] + 0.5, messages=(1e9, 1e9))
+        setup, tree, final, rows, _, _ = scale_model.model(rep, rep["seconds"] + 0.5, messages=(1e9, 1e9))
         by_workers = {row[0]: row for row in rows}
         self.assertAlmostEqual(by_workers[2][1], setup + 6.0 + final)
 

@@ -385,10 +385,11 @@ void PipelineRun::keepOwnLeaves()
 {
     const double start = mClock.seconds();
     const auto [begin, end] = rankBlocks();
+    // A rank opened its share of the topology: what its own blocks sample comes in now (all of it for a
+    // rank that holds every block).
+    if (mRanks && begin < end) mVol->readAround(mBlocks.data() + begin, end - begin);
     std::function<bool(const BlockOrigin&)> keep;  // empty: every leaf (one process)
     if (begin != 0 || end != mBlocks.size()) {
-        // A rank opened its share of the topology: what its own blocks sample comes in now.
-        mVol->readAround(mBlocks.data() + begin, end - begin);
         const auto within = [&, begin = begin, end = end](const BlockOrigin& b) {
             return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
         };
