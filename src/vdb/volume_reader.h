@@ -47,7 +47,9 @@ struct VolumeInfo {
     double background = 0.0;
     uint64_t leafCount = 0;
     uint64_t activeVoxels = 0;
-    // For the memory estimate (input_checks.h), from the topology alone.
+    // For the memory estimate (input_checks.h), from the topology alone. Where a distributed run's
+    // process read its share of the topology (open with a TreeAgreement of several parts), leafCount
+    // counts the file's leaves and activeVoxels and these two the share's.
     uint64_t topologyBytes = 0;      // tree nodes without the voxel buffers
     uint64_t maxLeavesPerLayer = 0;  // leaves in the fullest z-layer of leaves
     uint64_t valueBytes = 4;         // sizeof(float) or sizeof(double)
