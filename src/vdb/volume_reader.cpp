@@ -30,7 +30,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
-#include <unordered_map>
 
 #include <fcntl.h>
 #include <malloc.h>
@@ -45,6 +44,18 @@ namespace vdb_isosimp {
 // drop them again (trimInputMapping) and fault them back for the next leaf of the same pages, as
 // leaves lie in the file in tree order, not in sweep order. A read copies from the page cache and
 // maps nothing.
+// A leaf's or a node's origin as a key that ascends in the order OpenVDB's 5-4-3 tree lists its leaves
+// and nodes (the root's nodes by origin, x first; a node's children by offset, x slowest), so what is
+// kept in the file's order needs no sort. Origins lie within the vertex keys' range (checked at the
+// open): 8 bits per root coordinate, 5 per upper node, 4 per lower node.
+inline uint64_t treeKey(int32_t x, int32_t y, int32_t z)
+{
+    const auto root = [](int32_t c) { return uint64_t((c >> 12) + 128) & 0xFF; };
+    const auto part = [](int32_t c, int shift, uint32_t mask) { return uint64_t((uint32_t(c) >> shift) & mask); };
+    return root(x) << 51 | root(y) << 43 | root(z) << 35 | part(x, 7, 31) << 30 | part(y, 7, 31) << 25 |
+           part(z, 7, 31) << 20 | part(x, 3, 15) << 16 | part(y, 3, 15) << 12 | part(z, 3, 15) << 8;
+}
+
 class StoredLeaves {
 public:
     // `origins` in file order (the tree's), one per record of `layout`. Empty (read() finds no leaf)
@@ -112,17 +123,6 @@ public:
 private:
     static constexpr unsigned kSizeBits = 20;  // a record's bytes: a leaf's at most ~4 KB
     static constexpr uint64_t kSizeMask = (uint64_t(1) << kSizeBits) - 1;
-    // A leaf's origin as a key that ascends in the order OpenVDB's 5-4-3 tree lists its leaves (the
-    // root's nodes by origin, x first; a node's children by offset, x slowest), so the records need no
-    // sort. Origins lie within the vertex keys' range (checked at the open): 8 bits per root
-    // coordinate, 5 per upper node, 4 per lower node.
-    static uint64_t treeKey(int32_t x, int32_t y, int32_t z)
-    {
-        const auto root = [](int32_t c) { return uint64_t((c >> 12) + 128) & 0xFF; };
-        const auto part = [](int32_t c, int shift, uint32_t mask) { return uint64_t((uint32_t(c) >> shift) & mask); };
-        return root(x) << 51 | root(y) << 43 | root(z) << 35 | part(x, 7, 31) << 30 | part(y, 7, 31) << 25 |
-               part(z, 7, 31) << 20 | part(x, 3, 15) << 16 | part(y, 3, 15) << 12 | part(z, 3, 15) << 8;
-    }
     struct Record {
         uint64_t key;  // treeKey(origin)
         uint64_t at;   // start << kSizeBits | size
@@ -290,6 +290,7 @@ struct UnreadLowers final : UnreadLowersBase {
     using ValueT = typename TreeT::ValueType;
     struct Node {
         openvdb::Coord origin;
+        uint64_t key = 0;  // treeKey(origin): the nodes stay in the file's order, which ascends in it
         std::array<uint64_t, 2> bytes{};
         typename LowerT::NodeMaskType childMask;
         std::unique_ptr<ValueT[]> values;
@@ -300,18 +301,16 @@ struct UnreadLowers final : UnreadLowersBase {
     TopologyFormat format;
     ValueT background{};
     std::vector<Node> nodes;
-    std::unordered_map<uint64_t, size_t> at;  // by key(origin)
 
-    static uint64_t key(int32_t x, int32_t y, int32_t z)
-    {
-        constexpr int32_t kMask = ~int32_t(LowerT::DIM - 1);
-        const auto part = [](int32_t v) { return uint64_t(uint32_t(v >> LowerT::TOTAL) & 0x1FFFFF); };
-        return part(x & kMask) << 42 | part(y & kMask) << 21 | part(z & kMask);
-    }
+    // The unread node that holds (x, y, z), or null.
     const Node* find(int32_t x, int32_t y, int32_t z) const
     {
-        const auto it = at.find(key(x, y, z));
-        return it == at.end() ? nullptr : &nodes[it->second];
+        constexpr int32_t kMask = ~int32_t(LowerT::DIM - 1);
+        const uint64_t key = treeKey(x & kMask, y & kMask, z & kMask);
+        const auto it = std::lower_bound(nodes.begin(), nodes.end(), key, [](const Node& n, uint64_t k) { return n.key < k; });
+        // The origin too: a point far outside the vertex keys' range (a tile's face) may share a key.
+        const bool found = it != nodes.end() && it->origin == openvdb::Coord(x & kMask, y & kMask, z & kMask);
+        return found ? &*it : nullptr;
     }
     bool probe(const std::array<int32_t, 3>& xyz, bool& leaf, double& value) const
     {
@@ -391,8 +390,7 @@ public:
         for (size_t i = 0; i < count; ++i)
             for (int d = 0; d < 8; ++d) {
                 const BlockOrigin leaf = sampledLeaf(blocks[i], d);
-                const auto it = unread.at.find(UnreadLowers<TreeT>::key(leaf[0], leaf[1], leaf[2]));
-                if (it != unread.at.end()) wanted[it->second] = 1;
+                if (const auto* n = unread.find(leaf[0], leaf[1], leaf[2])) wanted[size_t(n - unread.nodes.data())] = 1;
             }
         std::vector<openvdb::Coord> origins;
         std::vector<std::array<uint64_t, 2>> bytes;
@@ -421,9 +419,8 @@ public:
             if (!upper || !upper->addChild(read[j].release()))
                 throw InputError(mInfo.file + ": grid '" + mInfo.gridName + "': its topology is not the walked one");
         }
-        // What stays unread is never sampled: forgotten, with the lookup.
+        // What stays unread is never sampled: forgotten.
         unread.nodes.clear();
-        unread.at.clear();
     }
 
     void sample(const std::array<int32_t, 3>& origin, BlockSamples& out, uint8_t reloadable) const override
@@ -1025,6 +1022,7 @@ std::shared_ptr<UnreadLowersBase> readTopologyOnAllThreads(GridT& grid, const st
             for (size_t k = r.begin(); k != r.end() && sound; ++k) {
                 auto& n = unread->nodes[k];
                 n.origin = origins[k];
+                n.key = treeKey(n.origin.x(), n.origin.y(), n.origin.z());
                 n.bytes = layout.lowerNodes[k];
                 in.seek(n.bytes[0]);
                 n.childMask.load(in.is);
@@ -1076,7 +1074,7 @@ std::shared_ptr<UnreadLowersBase> readTopologyOnAllThreads(GridT& grid, const st
         parents[own[j]]->addChild(read[j].release());
     }
     if (unread) {
-        // What stays unread: the nodes of the other parts, found by origin.
+        // What stays unread: the nodes of the other parts, in the file's order (find() searches it).
         std::vector<typename UnreadLowers<TreeT>::Node> rest;
         size_t next = 0;
         for (size_t k = 0; k < unread->nodes.size(); ++k) {
@@ -1085,10 +1083,10 @@ std::shared_ptr<UnreadLowersBase> readTopologyOnAllThreads(GridT& grid, const st
                 continue;
             }
             unread->activeTiles = unread->activeTiles || unread->nodes[k].activeTiles;
-            const openvdb::Coord& o = unread->nodes[k].origin;
-            unread->at[UnreadLowers<TreeT>::key(o.x(), o.y(), o.z())] = rest.size();
             rest.push_back(std::move(unread->nodes[k]));
         }
+        const auto byKey = [](const auto& a, const auto& b) { return a.key < b.key; };
+        if (!std::is_sorted(rest.begin(), rest.end(), byKey)) std::sort(rest.begin(), rest.end(), byKey);
         unread->nodes = std::move(rest);
     }
     for (auto& upper : uppers) tree->root().addChild(upper.release());
