@@ -138,6 +138,7 @@ private:
     template <typename F>
     void forSampledLeaves(size_t i, F&& f) const;
     std::pair<size_t, size_t> rankBlocks() const;
+    std::pair<size_t, size_t> rankSlabRange() const;  // the slabs this process extracts
     std::vector<char> rankMessage(std::vector<SlabPiece>&& levels) const;
     std::vector<SlabPiece> readRankMessage(const std::vector<char>& bytes);
     EmptySurfaceError noSurface() const;
@@ -368,8 +369,10 @@ void PipelineRun::splitSlabs()
 {
     const double start = mClock.seconds();
     const size_t slabs = std::min(slabCount(mBlocks.size(), mOpt.blocksPerSlab), mBlocks.size());
-    mOrder = arrangeBlocks(mBlocks, slabs, &mSweepAt);
     mSlabs = vdb_isosimp::splitSlabs(mBlocks, slabs);
+    // A rank arranges its own slabs and cuts the nodes above them: the rest of the order is other ranks'.
+    const auto [first, end] = rankSlabRange();
+    mOrder = arrangeBlocks(mBlocks, slabs, &mSweepAt, first, end);
     mResult.report.slabs = mSlabs.size();
     mSlabBatch = std::max<uint64_t>(1000, mOpt.batchFaces / kBatchShares);
     // The decimator's least face weight is a fraction of a voxel face, in world units.
@@ -390,8 +393,8 @@ void PipelineRun::keepOwnLeaves()
     if (mRanks && begin < end) mVol->readAround(mBlocks.data() + begin, end - begin);
     std::function<bool(const BlockOrigin&)> keep;  // empty: every leaf (one process)
     if (begin != 0 || end != mBlocks.size()) {
-        const auto within = [&, begin = begin, end = end](const BlockOrigin& b) {
-            return begin < end && !mOrder(b, mBlocks[begin]) && (end == mBlocks.size() || mOrder(b, mBlocks[end]));
+        const auto within = [&, slabs = rankSlabRange()](const BlockOrigin& b) {
+            return slabs.first < slabs.second && mOrder.slabSide(b, slabs.first, slabs.second) == 0;
         };
         keep = [within](const BlockOrigin& leaf) {
             for (int d = 0; d < 8; ++d)
@@ -565,8 +568,7 @@ template <typename Right>
 void PipelineRun::joinLevel(Integrator& left, Right&& right, size_t l, size_t r) const
 {
     left.park();  // every left child goes through park() once before its join, waiting or not
-    const size_t begin = mSlabs[l].begin, end = r < mSlabs.size() ? mSlabs[r].begin : mBlocks.size();
-    left.absorbSlab(std::forward<Right>(right), [&](EdgeKey key) { return edgeWithin(key, mBlocks, mOrder, begin, end); });
+    left.absorbSlab(std::forward<Right>(right), [&](EdgeKey key) { return edgeWithin(key, mOrder, l, r); });
 }
 
 // Decimation passes poll the same progress object, so a cancel request stops them too.
@@ -642,9 +644,8 @@ void PipelineRun::meshBlock(size_t si, size_t i, BlockMesh& m) const
     m.maxValue = *mm.second;
     extractBlock(s, mCls, mInfo.indexToWorld, mFlip, m);
     // The block itself is last of the cells around a vertex it finalises; only the first may lie before the slab.
-    const size_t first = mSlabs[si].begin;
     for (size_t v = 0; v < m.keys.size(); ++v)
-        if (m.finalAfterBlock[v] && !edgeWithin(m.keys[v], mBlocks, mOrder, first, mBlocks.size())) m.finalAfterBlock[v] = 0;
+        if (m.finalAfterBlock[v] && !edgeWithin(m.keys[v], mOrder, si, mSlabs.size())) m.finalAfterBlock[v] = 0;
     if (mOpt.attributeWeight > 0) mAttributes->sampleFirst(m.positions, m.attribute);
 }
 
@@ -679,9 +680,14 @@ void PipelineRun::integrateBlock(Integrator& integ, const BlockMesh& m)
 // The blocks this process extracts: all of them, or the slabs of its rank.
 std::pair<size_t, size_t> PipelineRun::rankBlocks() const
 {
-    if (!mRanks) return {0, mBlocks.size()};
-    const auto [l, r] = rankSlabs(mSlabs.size(), mRanks->rank(), mRanks->ranks());
+    const auto [l, r] = rankSlabRange();
     return l == r ? std::pair<size_t, size_t>{0, 0} : std::pair<size_t, size_t>{mSlabs[l].begin, mSlabs[r - 1].end};
+}
+
+std::pair<size_t, size_t> PipelineRun::rankSlabRange() const
+{
+    if (!mRanks) return {0, mSlabs.size()};
+    return rankSlabs(mSlabs.size(), mRanks->rank(), mRanks->ranks());
 }
 
 // The first place in mSweep not z/y/x-before `o`, searched from `from`, which is not after `o`:

@@ -88,11 +88,11 @@ EdgeBlocks edgeBlocks(EdgeKey key)
     return {{block(lo[0]), block(lo[1]), block(lo[2])}, {block(v[0]), block(v[1]), block(v[2])}};
 }
 
-bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const BlockOrder& order, size_t begin, size_t end)
+bool edgeWithin(EdgeKey key, const BlockOrder& order, size_t l, size_t r)
 {
+    // The order is monotone: the cells' first and last blocks bound the others.
     const EdgeBlocks eb = edgeBlocks(key);
-    if (begin > 0 && order(eb.first, blocks[begin])) return false;
-    return end >= blocks.size() || order(eb.last, blocks[end]);
+    return order.slabSide(eb.first, l, r) >= 0 && order.slabSide(eb.last, l, r) <= 0;
 }
 
 namespace {
@@ -116,7 +116,8 @@ uint64_t lexKey(const BlockOrigin& b, int axis)
 
 } // namespace
 
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace)
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace,
+                         size_t ownFirst, size_t ownEnd)
 {
     BlockOrder order;
     const size_t n = blocks.size();
@@ -131,6 +132,7 @@ BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::ve
     // halves of every node are arranged at once, on as many threads as the run has (the millions of
     // blocks of a large volume otherwise sort on one while every rank waits for its cut).
     const std::function<void(size_t, size_t, uint32_t)> build = [&](size_t l, size_t r, uint32_t id) {
+        if (r <= ownFirst || l >= ownEnd) return;  // another rank's subtree
         const auto first = at(l), last = at(r);
         if (r - l < 2) {
             keyOn(first, last, 2);

@@ -20,6 +20,10 @@ constexpr uint64_t kDefaultBlocksPerSlab = 2048;
 // last slab ending 13 % after the mean, 1024 slabs 9 %; docs/scale.md).
 constexpr size_t kMaxSlabs = 1024;
 
+// The merge tree over slabs [0, S): node [l, r) with r - l > 1 joins its children [l, m) and [m, r)
+// at m = mergeSplit(l, r), the left half the larger. Its depth is ceil(log2 S).
+inline size_t mergeSplit(size_t l, size_t r) { return l + (r - l + 1) / 2; }
+
 // The order blocks are extracted in, the merge tree's own: every node of the tree is a run of it, cut
 // from its parent's run by the lexicographic order (lexBefore) along the longest axis of the parent's
 // blocks, the lower part first; a slab is swept z, y, x. So a node's two children meet on about one
@@ -35,6 +39,29 @@ struct BlockOrder {
         uint32_t left = 0, right = 0;
     };
     std::vector<Node> nodes;  // nodes[0] is the root; empty: plain z/y/x (one slab)
+    size_t slabs() const { return nodes.empty() ? 1 : (nodes.size() + 1) / 2; }
+    // Whether origin x lies before (-1), among (0) or after (1) slabs [l, r) in this order: it walks
+    // down the nodes that straddle l or r only, so an order arranged for some slabs alone (a rank's,
+    // arrangeBlocks) answers for those slabs and for every range of its nodes above them.
+    int slabSide(const BlockOrigin& x, size_t l, size_t r) const
+    {
+        size_t nl = 0, nr = slabs(), id = 0;
+        while (true) {
+            if (nr <= l) return -1;
+            if (nl >= r) return 1;
+            if (l <= nl && nr <= r) return 0;
+            const Node& s = nodes[id];  // a node across l or r: two or more slabs
+            const size_t m = mergeSplit(nl, nr);
+            if (lexBefore(x, s.boundary, s.axis)) {
+                nr = m;
+                id = s.left;
+            } else {
+                nl = m;
+                id = s.right;
+            }
+        }
+    }
+    // The order itself, of an arrangement of every slab.
     bool operator()(const BlockOrigin& a, const BlockOrigin& b) const
     {
         for (uint32_t n = 0; n < nodes.size() && nodes[n].axis >= 0;) {
@@ -50,7 +77,11 @@ struct BlockOrder {
 // Puts the blocks (z/y/x-sorted, without duplicates) in the order of a merge tree over `slabs` slabs of
 // equal block counts (splitSlabs), and returns that order. With `sweepPlace`: each block's place in the
 // z/y/x order it came in (the blocks a block's samples reach lie a block, a row or a layer on there).
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace = nullptr);
+// Slabs [ownFirst, ownEnd) alone (a rank's): the nodes above them are cut and they are arranged, every
+// other subtree keeps its blocks in its run unarranged, and its nodes unset: enough for slabSide on
+// those slabs and the nodes above them, at a few passes over the blocks instead of one per level.
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace = nullptr,
+                         size_t ownFirst = 0, size_t ownEnd = SIZE_MAX);
 
 // A run of consecutive blocks in block order, extracted and decimated by its own integrator.
 struct Slab {
@@ -65,9 +96,6 @@ size_t slabCount(size_t blocks, uint64_t blocksPerSlab);
 // anywhere, also inside a layer of blocks. Fewer slabs than `count` when there are fewer blocks.
 std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count);
 
-// The merge tree over slabs [0, S): node [l, r) with r - l > 1 joins its children [l, m) and [m, r)
-// at m = mergeSplit(l, r), the left half the larger. Its depth is ceil(log2 S).
-inline size_t mergeSplit(size_t l, size_t r) { return l + (r - l + 1) / 2; }
 
 // The parent of node [nl, nr) in the subtree rooted at [l, r) (which must hold it and differ from it).
 std::pair<size_t, size_t> parentNode(size_t l, size_t r, size_t nl, size_t nr);
@@ -104,8 +132,8 @@ struct EdgeBlocks {
 };
 EdgeBlocks edgeBlocks(EdgeKey key);
 
-// Whether every cell around the edge lies in blocks [begin, end) of the list, sorted in `order` (end ==
-// size: no upper limit), i.e. the vertex is final once those blocks have joined.
-bool edgeWithin(EdgeKey key, const std::vector<BlockOrigin>& blocks, const BlockOrder& order, size_t begin, size_t end);
+// Whether every cell around the edge lies in slabs [l, r) of `order`, i.e. the vertex is final once
+// those slabs have joined. (Those cells are extracted, so their blocks are listed.)
+bool edgeWithin(EdgeKey key, const BlockOrder& order, size_t l, size_t r);
 
 } // namespace vdb_isosimp
