@@ -58,27 +58,36 @@ inline uint64_t treeKey(int32_t x, int32_t y, int32_t z)
 
 class StoredLeaves {
 public:
-    // `origins` in file order (the tree's), one per record of `layout`. Empty (read() finds no leaf)
-    // where the records cannot be kept this way.
-    StoredLeaves(const std::string& path, const VdbGridLayout& layout, const std::vector<std::array<int32_t, 3>>& origins)
+    // `origins` in file order (the tree's), one per record of `layout`. Unusable (usable() false) where
+    // the records cannot be kept this way. Every leaf's record is held, or with `holdAll` false none
+    // until hold() names them: a distributed run's rank reads a few of the file's leaves.
+    StoredLeaves(const std::string& path, const VdbGridLayout& layout, const std::vector<std::array<int32_t, 3>>& origins,
+                 bool holdAll = true)
         : mFd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)), mFileVersion(layout.fileVersion),
           mCompression(layout.compression), mHalf(layout.half)
     {
         const auto& at = layout.recordStarts;
         if (mFd < 0 || at.size() != origins.size() + 1 || mFileVersion < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION)
             return;
-        mRecords.reserve(origins.size());
-        for (size_t i = 0; i < origins.size(); ++i) {
-            const auto& o = origins[i];
-            if (at[i + 1] <= at[i] || at[i + 1] - at[i] > kSizeMask || at[i] >> (64 - kSizeBits)) {
-                mRecords.clear();
-                return;
-            }
-            mRecords.push_back({treeKey(o[0], o[1], o[2]), at[i] << kSizeBits | (at[i + 1] - at[i])});
+        for (size_t i = 0; i < origins.size(); ++i)
+            if (at[i + 1] <= at[i] || at[i + 1] - at[i] > kSizeMask || at[i] >> (64 - kSizeBits)) return;
+        mUsable = true;
+        if (!holdAll) {
+            mAt = at;
+            return;
         }
-        // In the file's order, which is the tree's, the keys already ascend.
-        const auto byKey = [](const Record& a, const Record& b) { return a.key < b.key; };
-        if (!std::is_sorted(mRecords.begin(), mRecords.end(), byKey)) std::sort(mRecords.begin(), mRecords.end(), byKey);
+        mRecords.reserve(origins.size());
+        for (size_t i = 0; i < origins.size(); ++i) mRecords.push_back(record(origins[i], at[i], at[i + 1]));
+        sortByKey();
+    }
+
+    // Holds the records of the leaves in `runs` ([first, end) of `origins`, those of the constructor) too.
+    void hold(const std::vector<std::array<int32_t, 3>>& origins, const std::vector<std::array<size_t, 2>>& runs)
+    {
+        if (!mUsable || mAt.empty()) return;  // every record is held
+        for (const auto& run : runs)
+            for (size_t i = run[0]; i < run[1]; ++i) mRecords.push_back(record(origins[i], mAt[i], mAt[i + 1]));
+        sortByKey();
     }
     ~StoredLeaves()
     {
@@ -87,7 +96,7 @@ public:
     StoredLeaves(const StoredLeaves&) = delete;
     StoredLeaves& operator=(const StoredLeaves&) = delete;
 
-    bool empty() const { return mRecords.empty(); }
+    bool usable() const { return mUsable; }
 
     // Reads the voxels of the leaf at `origin` into `values` (LeafT::SIZE of them); false where no
     // record has that origin. @throw std::runtime_error (or OpenVDB's exceptions) when the record
@@ -127,6 +136,16 @@ private:
         uint64_t key;  // treeKey(origin)
         uint64_t at;   // start << kSizeBits | size
     };
+    static Record record(const std::array<int32_t, 3>& o, uint64_t start, uint64_t end)
+    {
+        return {treeKey(o[0], o[1], o[2]), start << kSizeBits | (end - start)};
+    }
+    // In the file's order, which is the tree's, the keys already ascend: runs held in that order too.
+    void sortByKey()
+    {
+        const auto byKey = [](const Record& a, const Record& b) { return a.key < b.key; };
+        if (!std::is_sorted(mRecords.begin(), mRecords.end(), byKey)) std::sort(mRecords.begin(), mRecords.end(), byKey);
+    }
     // A stream over one record's bytes, a thread's own, reused.
     struct RecordStream {
         struct Buffer : std::streambuf {
@@ -139,7 +158,9 @@ private:
     int mFd;
     uint32_t mFileVersion, mCompression;
     bool mHalf;
+    bool mUsable = false;
     std::vector<Record> mRecords;
+    std::vector<uint64_t> mAt;  // where records start, while not all are held (hold())
 };
 
 namespace {
@@ -419,6 +440,7 @@ public:
             if (!upper || !upper->addChild(read[j].release()))
                 throw InputError(mInfo.file + ": grid '" + mInfo.gridName + "': its topology is not the walked one");
         }
+        if (mStored) mStored->hold(unread.origins, unread.readRuns);
         // What stays unread is never sampled: forgotten.
         unread.nodes.clear();
     }
@@ -1366,8 +1388,11 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
             else if (auto d = openvdb::GridBase::grid<openvdb::DoubleGrid>(grid)) collect(d->tree());
         }
         if (onDisk && same) {
-            auto stored = std::make_shared<const StoredLeaves>(path, layout, unread ? unread->origins : walked.empty() ? origins : walked);
-            if (!stored->empty()) volume->mStored = std::move(stored);
+            // Read in part: the records of the leaves the tree holds (readAround adds those it reads).
+            auto stored = std::make_shared<StoredLeaves>(path, layout, unread ? unread->origins : walked.empty() ? origins : walked,
+                                                         !unread);
+            if (unread) stored->hold(unread->origins, {{unread->ownFirst, unread->ownEnd}});
+            if (stored->usable() && layout.leafCount > 0) volume->mStored = std::move(stored);
         }
     }
     if (fromRecords && layout.leafCount > 0 && !volume->mStored)  // a topology read alone has no other source of voxels

@@ -161,7 +161,7 @@ protected:
     std::shared_ptr<const LeafRecords> mUnwalked;
     // Set where the walk of the stored tree found every leaf's record: a leaf's voxels are read from
     // the file with pread() and decoded here, not through OpenVDB's mapping of the file.
-    std::shared_ptr<const StoredLeaves> mStored;
+    std::shared_ptr<StoredLeaves> mStored;
     bool mFromFile = true;  // read from a file, voxels on disk until sampled: freed as blocks finish
     bool mHoldsMapping = false;  // keeps the input file's mapping alive, so trimInputMapping may cache it
     std::atomic<uint64_t> mParked{0};
