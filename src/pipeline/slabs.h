@@ -96,7 +96,6 @@ size_t slabCount(size_t blocks, uint64_t blocksPerSlab);
 // anywhere, also inside a layer of blocks. Fewer slabs than `count` when there are fewer blocks.
 std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count);
 
-
 // The parent of node [nl, nr) in the subtree rooted at [l, r) (which must hold it and differ from it).
 std::pair<size_t, size_t> parentNode(size_t l, size_t r, size_t nl, size_t nr);
 
