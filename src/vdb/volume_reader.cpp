@@ -59,10 +59,11 @@ inline uint64_t treeKey(int32_t x, int32_t y, int32_t z)
 class StoredLeaves {
 public:
     // `origins` in file order (the tree's), one per record of `layout`. Unusable (usable() false) where
-    // the records cannot be kept this way. Every leaf's record is held, or with `holdAll` false none
-    // until hold() names them: a distributed run's rank reads a few of the file's leaves.
+    // the records cannot be kept this way. Every leaf's record is held; or, given `starts` (the layout's
+    // own record starts, moved in here), none until hold() names them: a distributed run's rank reads
+    // a few of the file's leaves.
     StoredLeaves(const std::string& path, const VdbGridLayout& layout, const std::vector<std::array<int32_t, 3>>& origins,
-                 bool holdAll = true)
+                 std::vector<uint64_t>* starts = nullptr)
         : mFd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)), mFileVersion(layout.fileVersion),
           mCompression(layout.compression), mHalf(layout.half)
     {
@@ -72,8 +73,8 @@ public:
         for (size_t i = 0; i < origins.size(); ++i)
             if (at[i + 1] <= at[i] || at[i + 1] - at[i] > kSizeMask || at[i] >> (64 - kSizeBits)) return;
         mUsable = true;
-        if (!holdAll) {
-            mAt = at;
+        if (starts) {
+            mAt = std::move(*starts);  // `at` is *starts: not read again
             return;
         }
         mRecords.reserve(origins.size());
@@ -82,12 +83,15 @@ public:
     }
 
     // Holds the records of the leaves in `runs` ([first, end) of `origins`, those of the constructor) too.
-    void hold(const std::vector<std::array<int32_t, 3>>& origins, const std::vector<std::array<size_t, 2>>& runs)
+    // After the `last` call the record starts go: no other leaf is held.
+    void hold(const std::vector<std::array<int32_t, 3>>& origins, const std::vector<std::array<size_t, 2>>& runs,
+              bool last = false)
     {
         if (!mUsable || mAt.empty()) return;  // every record is held
         for (const auto& run : runs)
             for (size_t i = run[0]; i < run[1]; ++i) mRecords.push_back(record(origins[i], mAt[i], mAt[i + 1]));
         sortByKey();
+        if (last) std::vector<uint64_t>().swap(mAt);
     }
     ~StoredLeaves()
     {
@@ -160,7 +164,7 @@ private:
     bool mHalf;
     bool mUsable = false;
     std::vector<Record> mRecords;
-    std::vector<uint64_t> mAt;  // where records start, while not all are held (hold())
+    std::vector<uint64_t> mAt;  // where records start, while not all are held, until the last hold()
 };
 
 namespace {
@@ -440,7 +444,7 @@ public:
             if (!upper || !upper->addChild(read[j].release()))
                 throw InputError(mInfo.file + ": grid '" + mInfo.gridName + "': its topology is not the walked one");
         }
-        if (mStored) mStored->hold(unread.origins, unread.readRuns);
+        if (mStored) mStored->hold(unread.origins, unread.readRuns, /*last=*/true);
         // What stays unread is never sampled: forgotten.
         unread.nodes.clear();
     }
@@ -1324,7 +1328,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     const Stopwatch check;
     LeafWalkShare share{agreement.part, agreement.parts,
                         [&](bool sound, uint64_t digest) { return agreeOnce.agree(true, sound, digest); }};
-    const VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement.agree ? &share : nullptr);
+    VdbGridLayout layout = checkVdbGridData(path, entries, meta->getName(), agreement.agree ? &share : nullptr);
     agreeOnce.agree(false, false, 0);  // a tree this walk does not cover has no say
     for (auto& g : entries.grids) g.delayed.reset();  // walked: OpenVDB reads the topology next
     const double checkSeconds = check.seconds();
@@ -1390,7 +1394,7 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
         if (onDisk && same) {
             // Read in part: the records of the leaves the tree holds (readAround adds those it reads).
             auto stored = std::make_shared<StoredLeaves>(path, layout, unread ? unread->origins : walked.empty() ? origins : walked,
-                                                         !unread);
+                                                         unread ? &layout.recordStarts : nullptr);
             if (unread) stored->hold(unread->origins, {{unread->ownFirst, unread->ownEnd}});
             if (stored->usable() && layout.leafCount > 0) volume->mStored = std::move(stored);
         }
