@@ -33,9 +33,33 @@ TEST(Slabs, CountGrowsWithTheVolumeUpToALimit)
     EXPECT_EQ(slabCount(0, kDefaultBlocksPerSlab), 1u);
     EXPECT_EQ(slabCount(100, kDefaultBlocksPerSlab), 1u);
     EXPECT_EQ(slabCount(2049, 2048), 2u);
-    EXPECT_EQ(slabCount(185193, 2048), 91u);  // the 448^3 perf volume: at least 64 pieces of work
+    EXPECT_EQ(slabCount(185193, 2048), 128u);  // the 448^3 perf volume: at least 64 pieces of work
     EXPECT_EQ(slabCount(10000000, 2048), kMaxSlabs);
-    EXPECT_EQ(slabCount(5, 1), 5u);
+    EXPECT_EQ(slabCount(5, 1), 8u);
+}
+
+TEST(Slabs, CountSplitsEvenlyAmongAPowerOfTwoOfRanks)
+{
+    // Every count is a power of two, at least ceil(blocks / per) and under twice it (or kMaxSlabs); then
+    // 2^j ranks up to the count each make the same number of slabs.
+    for (uint64_t per : {1, 7, 2048}) {
+        for (size_t blocks = 1; blocks < 3000 * per; blocks += 1 + blocks / 50) {
+            const size_t count = slabCount(blocks, per);
+            const uint64_t wanted = std::min<uint64_t>((blocks + per - 1) / per, kMaxSlabs);
+            ASSERT_GE(count, wanted) << blocks << " blocks, " << per << " a slab";
+            ASSERT_LT(count, std::max<uint64_t>(wanted * 2, 2)) << blocks << " blocks, " << per << " a slab";
+            ASSERT_EQ(count & (count - 1), 0u) << count;
+            for (size_t ranks = 1; ranks <= count; ranks *= 2) {
+                std::vector<size_t> made;
+                for (size_t r = 0; r < ranks; ++r) {
+                    const auto [first, end] = rankSlabs(count, r, ranks);
+                    made.push_back(end - first);
+                }
+                ASSERT_EQ(*std::min_element(made.begin(), made.end()), *std::max_element(made.begin(), made.end()))
+                    << count << " slabs on " << ranks << " ranks";
+            }
+        }
+    }
 }
 
 TEST(Slabs, EqualRunsCoveringEveryBlockOnce)

@@ -11,7 +11,10 @@ namespace vdb_isosimp {
 size_t slabCount(size_t blocks, uint64_t blocksPerSlab)
 {
     const uint64_t per = std::max<uint64_t>(1, blocksPerSlab);
-    return size_t(std::clamp<uint64_t>((blocks + per - 1) / per, 1, kMaxSlabs));
+    const uint64_t wanted = std::clamp<uint64_t>((blocks + per - 1) / per, 1, kMaxSlabs);
+    uint64_t count = 1;
+    while (count < wanted) count *= 2;
+    return size_t(std::min<uint64_t>(count, kMaxSlabs));
 }
 
 std::vector<Slab> splitSlabs(const std::vector<BlockOrigin>& blocks, size_t count)

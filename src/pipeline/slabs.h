@@ -88,8 +88,11 @@ struct Slab {
     size_t begin = 0, end = 0;
 };
 
-// How many slabs a list of `blocks` blocks is cut into: one per `blocksPerSlab` (rounded up), at
-// most kMaxSlabs.
+// How many slabs a list of `blocks` blocks is cut into: one per `blocksPerSlab` (rounded up), then
+// up to a power of two, at most kMaxSlabs (a power of two too). The merge tree halves such a count
+// exactly down to its slabs, so the slabs are bricks of one shape and 2^j ranks get equal shares of
+// them (a rank with one slab more than the others holds them all up at the joins above it). Slabs
+// hold 1/2 to 1 times `blocksPerSlab` blocks.
 size_t slabCount(size_t blocks, uint64_t blocksPerSlab);
 
 // Cuts the sorted blocks into `count` slabs of equal block counts (within one); a cut may fall
