@@ -16,20 +16,26 @@
 
 using namespace vdb_isosimp;
 
+// Blocks packed in a small box (sorted through a bit per place of it) and spread over a box far
+// larger than the list (sorted by comparison), against a set ordered by (z, y, x).
 TEST(BlockOrder, SortsByZThenYThenXWithoutDuplicates)
 {
-    std::mt19937 rng(3);
-    std::vector<BlockOrigin> blocks;
-    for (int i = 0; i < 5000; ++i)
-        blocks.push_back({8 * int32_t(rng() % 9) - 32, 8 * int32_t(rng() % 9) - 32, 8 * int32_t(rng() % 9) - 32});
-    std::set<std::array<int32_t, 3>> zyx;
-    for (const auto& b : blocks) zyx.insert({b[2], b[1], b[0]});
-    sortBlocks(blocks);
-    ASSERT_EQ(blocks.size(), zyx.size());
-    size_t i = 0;
-    for (const auto& k : zyx) {
-        EXPECT_EQ(blocks[i], (BlockOrigin{k[2], k[1], k[0]})) << i;
-        ++i;
+    for (const uint32_t places : {9u, 5u, 1u << 20}) {
+        std::mt19937 rng(3);
+        std::vector<BlockOrigin> blocks;
+        for (int i = 0; i < 5000; ++i) {
+            const auto at = [&] { return 8 * int32_t(rng() % places) - 8 * int32_t(places / 2); };
+            blocks.push_back({at(), at(), at()});
+        }
+        std::set<std::array<int32_t, 3>> zyx;
+        for (const auto& b : blocks) zyx.insert({b[2], b[1], b[0]});
+        sortBlocks(blocks);
+        ASSERT_EQ(blocks.size(), zyx.size()) << places << " places a side";
+        size_t i = 0;
+        for (const auto& k : zyx) {
+            EXPECT_EQ(blocks[i], (BlockOrigin{k[2], k[1], k[0]})) << i << ", " << places << " places a side";
+            ++i;
+        }
     }
 }
 
@@ -122,11 +128,15 @@ TEST(BlockOrder, CoversEveryStraddlingCell)
 // runs: the same list as sorting every run's blocks together.
 TEST(BlockOrder, RunsMergeIntoOneList)
 {
-    std::vector<BlockOrigin> all;
-    for (int z = 0; z < 40; z += 8)
-        for (int y = -16; y < 24; y += 8)
-            for (int x = -8; x < 32; x += 8) all.push_back({x, y, z});
+    // A packed box (merged through a bit per place) and the same blocks spread far apart (merged by
+    // comparison).
+    for (const int32_t spread : {1, 1 << 16})
     for (size_t runs : {1u, 2u, 5u, 8u, 13u}) {
+        std::vector<BlockOrigin> all;
+        for (int z = 0; z < 40; z += 8)
+            for (int y = -16; y < 24; y += 8)
+                for (int x = -8; x < 32; x += 8) all.push_back({x * spread, y * spread, z * spread});
+        std::set<std::array<int32_t, 3>> zyx;
         std::vector<BlockOrigin> blocks;
         std::vector<size_t> ends;
         for (size_t r = 0; r < runs; ++r) {
@@ -135,13 +145,14 @@ TEST(BlockOrder, RunsMergeIntoOneList)
                 if (i % runs == r || (i + r) % 7 == 0) blocks.push_back(all[i]);
             ends.push_back(blocks.size());
         }
-        std::vector<BlockOrigin> expected = blocks;
-        sortBlocks(expected);
+        for (const auto& b : blocks) zyx.insert({b[2], b[1], b[0]});
+        std::vector<BlockOrigin> expected;
+        for (const auto& k : zyx) expected.push_back({k[2], k[1], k[0]});
         if (runs > 1) {
             ASSERT_LT(expected.size(), blocks.size()) << runs << " runs: no block is listed twice";
         }
         mergeBlockRuns(blocks, ends);
-        EXPECT_EQ(blocks, expected) << runs << " runs";
+        EXPECT_EQ(blocks, expected) << runs << " runs, spread " << spread;
     }
 }
 
