@@ -56,7 +56,11 @@ Prints a table of W -> modelled seconds and speed-up (ranks, threads, the bound,
 the critical paths at 16 workers,
 the speed-up if every slab took the mean of the slabs' seconds (slabs cut by work instead of by block count),
 and writes an SVG plot.
-Usage: scale_model.py [--messages MPI_REPORT.json] [--setup MPI_REPORT.json ...] REPORT.json WALL_SECONDS LABEL
+Several runs: REPORT.json,REPORT_B.json,... with WALL,WALL_B,... (the same volume and options, so the same tree):
+each node's seconds, each part of the set-up and the final pass, and the write (wall less the report's seconds) are
+the least over the runs, the best of each part; a shared host only ever adds to a part's seconds, and adds to
+different nodes in different runs (the gyroid's per-slab seconds of two runs correlate at 0.18, docs/scale.md).
+Usage: scale_model.py [--messages MPI_REPORT.json] [--setup MPI_REPORT.json ...] REPORT.json[,...] WALL_SECONDS[,...] LABEL
                       [[--messages MPI_REPORT2.json] ... REPORT2.json WALL2 LABEL2 ...] OUT.svg
 (--messages's report gives set-up points too where it lists them; --setup adds more rank counts.)
 """
@@ -324,6 +328,37 @@ def setup_point(mpi, path, report):
     return (int(mpi["ranks"]), max(measured)) if measured and max(measured) > 0 else None
 
 
+def best_of_runs(paths, walls):
+    """One report and wall from several runs of the same volume and options: every node's seconds and every
+    seconds_* part the least over the runs, and the wall the least set-up, parts and write put together."""
+    runs = [json.load(open(p)) for p in paths]
+    if len(runs) != len(walls):
+        sys.exit(f"{','.join(paths)}: {len(runs)} reports but {len(walls)} wall times")
+    best = dict(runs[0])
+    for path, run in zip(paths[1:], runs[1:]):
+        if int(run["slabs"]) != int(best["slabs"]) or run["faces_out"] != best["faces_out"]:
+            sys.exit(f"{path}: not a run of the same volume and options as {paths[0]}")
+    node = {}
+    for run in runs:
+        for f, e, sec in zip(run["tree_first_slab"], run["tree_end_slab"], run["tree_seconds"]):
+            node[(f, e)] = min(node.get((f, e), sec), sec)
+    keys = sorted(node)
+    best["tree_first_slab"] = [f for f, _ in keys]
+    best["tree_end_slab"] = [e for _, e in keys]
+    best["tree_seconds"] = [node[k] for k in keys]
+
+    def unnamed(run):  # the set-up no field times apart (model's `setup` less the named parts it holds)
+        return run["seconds"] - run["seconds_slabs"] - run["seconds_final"] - run.get("seconds_count", 0.0) - run.get("seconds_layout", 0.0)
+
+    for key in best:
+        if key.startswith("seconds_"):
+            best[key] = min(run[key] for run in runs)
+    best["seconds_slabs"] = sum(node.values())
+    best["seconds"] = (min(unnamed(run) for run in runs) + best["seconds_slabs"] + best["seconds_final"] +
+                       best.get("seconds_count", 0.0) + best.get("seconds_layout", 0.0))
+    return best, best["seconds"] + min(w - run["seconds"] for run, w in zip(runs, walls))
+
+
 def main(argv):
     args, groups, messages, setups = argv[1:-1], [], None, []
     while args:
@@ -336,14 +371,18 @@ def main(argv):
             continue
         if len(args) < 3:
             sys.exit(__doc__)
-        groups.append((args[0], float(args[1]), args[2], messages, setups))
+        groups.append((args[0].split(","), [float(w) for w in args[1].split(",")], args[2], messages, setups))
         args, messages, setups = args[3:], None, []
     if not groups or messages or setups:
         sys.exit(__doc__)
     out = argv[-1]
     curves = []
-    for path, wall, label, messages, setups in groups:
-        report = json.load(open(path))
+    for paths, walls, label, messages, setups in groups:
+        path = paths[0]
+        report, wall = best_of_runs(paths, walls)
+        if len(paths) > 1:
+            print(f"{label}: the best of {len(paths)} runs (walls " + ", ".join(f"{w:.2f}" for w in walls) +
+                  f" s), each node and part its least: {wall:.2f} s")
         setup_pts = [p for p in (setup_point(json.load(open(f)), f, report) for f in ([messages] if messages else []) + setups) if p]
         fit = None
         if messages:
