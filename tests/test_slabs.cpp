@@ -184,7 +184,7 @@ TEST(Slabs, TreeOrderIsMonotone)
         std::vector<BlockOrigin> blocks = randomBlocks(9, 3000, 12);
         const std::vector<BlockOrigin> listed = blocks;
         ASSERT_TRUE(std::is_sorted(listed.begin(), listed.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); }));
-        std::vector<uint32_t> place;
+        PooledVector<uint32_t> place;
         const BlockOrder order = arrangeBlocks(blocks, slabs, &place);
         ASSERT_EQ(blocks.size(), listed.size());
         ASSERT_TRUE(std::is_permutation(blocks.begin(), blocks.end(), listed.begin()));
@@ -220,7 +220,7 @@ TEST(Slabs, TreeOrderIsTheSameOnAnyNumberOfThreads)
     for (size_t slabs : {2, 7, 64, 300}) {
         const std::vector<BlockOrigin> listed = randomBlocks(11, 20000, 40);
         std::vector<BlockOrigin> one = listed, many = listed;
-        std::vector<uint32_t> placeOne, placeMany;
+        PooledVector<uint32_t> placeOne, placeMany;
         BlockOrder orderOne, orderMany;
         tbb::task_arena(1).execute([&] { orderOne = arrangeBlocks(one, slabs, &placeOne); });
         tbb::task_arena(4).execute([&] { orderMany = arrangeBlocks(many, slabs, &placeMany); });
@@ -266,10 +266,10 @@ TEST(Slabs, RankArrangesItsOwnSlabsAsTheWholeOrderDoes)
                 const auto [l, r] = rankSlabs(slabs, rank, ranks);
                 if (l == r) continue;
                 std::vector<BlockOrigin> mine = listed;
-                std::vector<uint32_t> place;
+                PooledVector<uint32_t> place;
                 const BlockOrder part = arrangeBlocks(mine, slabs, &place, l, r);
                 for (size_t j = 0; j < mine.size(); ++j) ASSERT_EQ(listed[place[j]], mine[j]);
-                std::vector<uint32_t> places = place;  // each place once: a permutation of the list
+                std::vector<uint32_t> places(place.begin(), place.end());  // each place once: a permutation of the list
                 std::sort(places.begin(), places.end());
                 for (size_t j = 0; j < places.size(); ++j) ASSERT_EQ(places[j], j);
                 for (size_t j = cut[l].begin; j < cut[r - 1].end; ++j)

@@ -132,9 +132,10 @@ private:
     // The blocks in z/y/x order with their index in mBlocks, and each block's place here: the leaves a
     // block samples lie +x, +y and +z of it, the next block, a row or a layer on in this order, where the
     // tree's order may put them a subtree away (and compares by walking its cuts). The places come with
-    // the cut (arrangeBlocks), the list with the leaf counts; both go with the leaf counts.
-    std::vector<std::pair<BlockOrigin, uint32_t>> mSweep;
-    std::vector<uint32_t> mSweepAt;
+    // the cut (arrangeBlocks), the list with the leaf counts; both go with the leaf counts. Tens of
+    // megabytes on a large volume, written at once: pooled, they take huge pages (a page fault per 2 MiB).
+    PooledVector<std::pair<BlockOrigin, uint32_t>> mSweep;
+    PooledVector<uint32_t> mSweepAt;
     template <typename F>
     void forSampledLeaves(size_t i, F&& f) const;
     std::pair<size_t, size_t> rankBlocks() const;

@@ -119,12 +119,13 @@ uint64_t lexKey(const BlockOrigin& b, int axis)
 
 } // namespace
 
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace,
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, PooledVector<uint32_t>* sweepPlace,
                          size_t ownFirst, size_t ownEnd)
 {
     BlockOrder order;
     const size_t n = blocks.size();
-    std::vector<Placed> placed(n);
+    // Tens of megabytes for a large volume, written once: huge pages spare a page fault per 4 KiB.
+    PooledVector<Placed> placed(n);
     for (size_t i = 0; i < n; ++i) placed[i] = {0, blocks[i], uint32_t(i)};
     const auto at = [&](size_t s) { return placed.begin() + std::ptrdiff_t(n * s / slabs); };  // splitSlabs's cut
     const auto byKey = [](const Placed& a, const Placed& b) { return a.key < b.key; };

@@ -3,6 +3,7 @@
 // alone, never on threads or ranks, so the output does not either.
 #pragma once
 #include "vdb/block_order.h"
+#include "core/chunk_pool.h"
 #include "core/edge_key.h"
 
 #include <cstddef>
@@ -80,7 +81,7 @@ struct BlockOrder {
 // Slabs [ownFirst, ownEnd) alone (a rank's): the nodes above them are cut and they are arranged, every
 // other subtree keeps its blocks in its run unarranged, and its nodes unset: enough for slabSide on
 // those slabs and the nodes above them, at a few passes over the blocks instead of one per level.
-BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, std::vector<uint32_t>* sweepPlace = nullptr,
+BlockOrder arrangeBlocks(std::vector<BlockOrigin>& blocks, size_t slabs, PooledVector<uint32_t>* sweepPlace = nullptr,
                          size_t ownFirst = 0, size_t ownEnd = SIZE_MAX);
 
 // A run of consecutive blocks in block order, extracted and decimated by its own integrator.

@@ -39,15 +39,31 @@ bool sortBlocksInBox(std::vector<BlockOrigin>& blocks)
         const uint64_t i = ((uint64_t(b[2] - lo[2]) / 8 * size[1]) + uint64_t(b[1] - lo[1]) / 8) * size[0] + uint64_t(b[0] - lo[0]) / 8;
         bits[i / 64] |= uint64_t(1) << (i % 64);
     }
+    // The places come in increasing order: x, y and z follow by carries, not divisions.
     size_t n = 0;
+    uint64_t at = 0, x = 0, y = 0, z = 0;
     for (size_t w = 0; w < bits.size(); ++w)
         for (uint64_t word = bits[w]; word; word &= word - 1) {
             const uint64_t i = w * 64 + uint64_t(__builtin_ctzll(word));
-            const uint64_t x = i % size[0], y = i / size[0] % size[1], z = i / size[0] / size[1];
+            x += i - at;
+            at = i;
+            for (; x >= size[0]; x -= size[0])
+                if (++y == size[1]) {
+                    y = 0;
+                    ++z;
+                }
             blocks[n++] = {lo[0] + int32_t(8 * x), lo[1] + int32_t(8 * y), lo[2] + int32_t(8 * z)};
         }
     blocks.resize(n);
     return true;
+}
+
+// Gives back the room of duplicates where they took more than an eighth of the list (collection
+// pushes a block once per leaf or tile face that needs it, and that room would otherwise stay reserved
+// all run long). Less is kept: the copy would touch every page of a fresh array, a page fault each.
+void releaseDuplicatesRoom(std::vector<BlockOrigin>& blocks)
+{
+    if (blocks.capacity() - blocks.size() > blocks.size() / 8) blocks.shrink_to_fit();
 }
 
 } // namespace
@@ -59,15 +75,13 @@ void sortBlocks(std::vector<BlockOrigin>& blocks)
         tbb::parallel_sort(blocks.begin(), blocks.end(), [](const BlockOrigin& a, const BlockOrigin& b) { return lexBefore(a, b, 2); });
         blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
     }
-    // Collection pushes a block once per leaf or tile face that needs it: the duplicates' room would
-    // otherwise stay reserved all run long.
-    blocks.shrink_to_fit();
+    releaseDuplicatesRoom(blocks);
 }
 
 void mergeBlockRuns(std::vector<BlockOrigin>& blocks, const std::vector<size_t>& runEnds)
 {
     if (sortBlocksInBox(blocks)) {
-        blocks.shrink_to_fit();
+        releaseDuplicatesRoom(blocks);
         return;
     }
     // Neighbouring runs merge pairwise, round after round, the pairs of a round on all threads: a
@@ -88,7 +102,7 @@ void mergeBlockRuns(std::vector<BlockOrigin>& blocks, const std::vector<size_t>&
         ends = std::move(next);
     }
     blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
-    blocks.shrink_to_fit();
+    releaseDuplicatesRoom(blocks);
 }
 
 namespace {
