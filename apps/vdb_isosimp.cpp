@@ -508,9 +508,10 @@ int main(int argc, char** argv)
         ->default_val(opt.threads)
         ->check(CLI::Range(0, 1024));
     app.add_option("--slab-blocks", opt.blocksPerSlab,
-                   "Blocks (8^3 cells) per slab: the volume is cut into slabs of this many blocks (at most 1024\n"
-                   "slabs), the independent pieces threads and MPI ranks share, joined by a fixed merge tree.\n"
-                   "Changes the output slightly (more slabs, more seams); threads and ranks never do")
+                   "Most blocks (8^3 cells) a slab holds: the volume is cut into a power of two of slabs of equal\n"
+                   "block counts, the fewest that hold at most this many (at most 1024 slabs), the independent\n"
+                   "pieces threads and MPI ranks share, joined by a fixed merge tree. Changes the output slightly\n"
+                   "(more slabs, more seams); threads and ranks never do")
         ->default_val(opt.blocksPerSlab)
         ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
     app.add_option("--retire-above", opt.retireAboveFaces,

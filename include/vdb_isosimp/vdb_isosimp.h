@@ -62,8 +62,9 @@ struct Options {
     // grid's topology exceeds this many bytes; checked on the opened grid before any voxel is read
     // (and again with the surface along tile faces once the iso-value is known). 0: no limit.
     uint64_t maxMemoryBytes = 0;
-    // Blocks (8^3 cells) per slab: the blocks are cut into slabs of this many (at most 1024 slabs), the
-    // independent pieces of work that threads and MPI ranks share, joined by a fixed merge tree.
+    // Most blocks (8^3 cells) per slab: the blocks are cut into the fewest slabs of at most this many,
+    // rounded up to a power of two (at most 1024 slabs), the independent pieces of work that threads
+    // and MPI ranks share, joined by a fixed merge tree (a power of two halves exactly at every node).
     // Changes the output (more slabs: more seams, each decimated when its two sides join); the output
     // never depends on threads or ranks. Default 2048.
     uint64_t blocksPerSlab = 2048;
