@@ -68,11 +68,11 @@ for N in 2 4; do
 done
 echo "--retire-above 2000: $retired faces retired; 2 and 4 ranks, same bytes as one process"
 
-# A face target on a large volume counts a sample of the blocks (a gyroid of 77 slabs of 64 blocks:
-# every fourth run of 64), each rank its own sampled runs; a sample too coarse to say anything (the
+# A face target on a large volume counts a sample of the blocks (a gyroid of 128 slabs of 38 blocks, a
+# run each: every fourth run), each rank its own sampled runs; a sample too coarse to say anything (the
 # noise volume, every fifth run) is followed by a count of every block, agreed among the ranks again.
 "$B/make_volume" gyroid -n 128 -o "$W/g.vdb" > /dev/null
-for CASE in "g 16 4" "v 8 1"; do
+for CASE in "g 32 4" "v 8 1"; do
   read -r V S STRIDE <<< "$CASE"
   ARGS=(--faces 20000 --count-sample "$S" --batch 1000 --slab-blocks 64 -q)
   "$B/vdb_isosimp" "$W/$V.vdb" "${ARGS[@]}" -o "$W/s_one.ply" --report "$W/s_one.json"

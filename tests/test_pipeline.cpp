@@ -344,7 +344,7 @@ TEST(Pipeline, FaceCountReportsProgressAndCancels)
 
 TEST(Pipeline, AFaceTargetOnALargeVolumeCountsASample)
 {
-    // A gyroid of 4,913 blocks in 77 slabs of 64 (77 runs of 64 blocks): with countSampleRuns 16 the
+    // A gyroid of 4,913 blocks in 128 slabs of 38 (a run of blocks each): with countSampleRuns 32 the
     // count reads one run in four. The rate it gives lies above the exact one (the margin covers the
     // estimate's error), the final pass still meets the target, the report's full count is the exact
     // one, and the threads do not change the mesh. A sample of one run says nothing: every block is
@@ -359,7 +359,7 @@ TEST(Pipeline, AFaceTargetOnALargeVolumeCountsASample)
         o.threads = threads;
         return simplifyFile(path, o);
     };
-    const Result exact = run(0, 0), sampled = run(16, 0), sampledOne = run(16, 1), coarse = run(1, 0);
+    const Result exact = run(0, 0), sampled = run(32, 0), sampledOne = run(32, 1), coarse = run(1, 0);
     std::remove(path.c_str());
     EXPECT_EQ(exact.report.countStride, 1u);
     EXPECT_EQ(exact.report.countMargin, 0.0);
