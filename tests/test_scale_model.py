@@ -204,5 +204,33 @@ class Messages(unittest.TestCase):
         self.assertAlmostEqual(by_workers[2][1], setup + 6.0 + final)
 
 
+class BestOfRuns(unittest.TestCase):
+    def test_each_node_and_part_its_least(self):
+        # Two runs of the same tree, each slow on other nodes and parts: the best has every node's and part's
+        # least seconds, the set-up no field names (seconds less the named parts) and the write (wall less
+        # seconds) each their least too.
+        import json
+        import os
+        import tempfile
+        a = report([2, 1, 1, 1], [0.5, 0.9, 0.5])
+        b = report([1, 1, 3, 1], [0.7, 0.5, 0.5])
+        a["seconds_final"], b["seconds_final"] = 0.25, 0.75
+        b["seconds"] += 1.0  # unnamed set-up: a's 1.0 - 0.25 = 0.75 s, b's 2.0 - 0.75 = 1.25 s
+        with tempfile.TemporaryDirectory() as d:
+            paths = []
+            for name, rep in (("a", a), ("b", b)):
+                paths.append(os.path.join(d, name + ".json"))
+                with open(paths[-1], "w") as f:
+                    json.dump(rep, f)
+            best, wall = scale_model.best_of_runs(paths, [a["seconds"] + 0.3, b["seconds"] + 0.2])
+        nodes = nodes_of(best)
+        self.assertEqual([nodes[(i, i + 1)] for i in range(4)], [1, 1, 1, 1])
+        self.assertEqual([nodes[k] for k in ((0, 2), (2, 4), (0, 4))], [0.5, 0.5, 0.5])
+        self.assertAlmostEqual(best["seconds_slabs"], 5.5)
+        self.assertAlmostEqual(best["seconds_final"], 0.25)
+        self.assertAlmostEqual(best["seconds"], 0.75 + 5.5 + 0.25)
+        self.assertAlmostEqual(wall, best["seconds"] + 0.2)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
