@@ -45,7 +45,7 @@ inline bool lexBefore(const BlockOrigin& a, const BlockOrigin& b, int axis)
     return false;
 }
 
-// Sorts by (z, y, x) and removes duplicates.
+// Sorts block origins (multiples of 8, as every listed block is) by (z, y, x) and removes duplicates.
 void sortBlocks(std::vector<BlockOrigin>& blocks);
 
 // What a tree read in part says of the lower internal nodes it does not hold (a distributed run's rank
