@@ -341,12 +341,19 @@ std::string readDelayedArray(BoundedReader& in, uint64_t end, uint32_t count, st
     return in.seek(start + bytes) ? "" : "ends early";
 }
 
-// The trees this walk knows: Tree4<float or double, 5, 4, 3>, maybe stored as half floats.
-bool treeFormat(std::string type, bool& half, uint64_t& valueSize)
+// A descriptor's tree type without the suffix that marks a grid stored as half floats (`half`), as
+// io::GridDescriptor reads it.
+std::string treeType(const std::string& stored, bool& half)
 {
-    const std::string halfSuffix = "_HalfFloat";
-    half = type.size() > halfSuffix.size() && type.compare(type.size() - halfSuffix.size(), halfSuffix.size(), halfSuffix) == 0;
-    if (half) type.resize(type.size() - halfSuffix.size());
+    const std::string suffix = "_HalfFloat";
+    half = stored.size() >= suffix.size() && stored.compare(stored.size() - suffix.size(), suffix.size(), suffix) == 0;
+    return half ? stored.substr(0, stored.size() - suffix.size()) : stored;
+}
+
+// The trees this walk knows: Tree4<float or double, 5, 4, 3>, maybe stored as half floats.
+bool treeFormat(const std::string& stored, bool& half, uint64_t& valueSize)
+{
+    const std::string type = treeType(stored, half);
     valueSize = type == "Tree_float_5_4_3" ? 4 : type == "Tree_double_5_4_3" ? 8 : 0;
     return valueSize != 0;
 }
@@ -358,12 +365,14 @@ enum class HalfFlag { Absent, No, Yes, Other };
 // A metadata map (file or grid): uint32 count, then per item name, type name, uint32 size and the
 // value. Every size must fit before `end`, fixed-size types must state their size, and the
 // delayed-load table (read by OpenVDB with no bound of its own) must be consistent.
+// `item`, where given: the span of the item named `item->first` (left 0 0 without one).
 std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, DelayedLoadSizes* delayed,
-                        HalfFlag* half = nullptr)
+                        HalfFlag* half = nullptr, std::pair<const char*, std::array<uint64_t, 2>>* item = nullptr)
 {
     uint32_t count = 0;
     if (!in.value(count) || count > in.left() / 12) return "metadata count ends early or is invalid";
     for (uint32_t i = 0; i < count; ++i) {
+        const uint64_t itemStart = in.pos();
         std::string name, type;
         uint32_t n = 0;
         if (!in.string(&name) || !in.string(&type) || !in.value(n) || n > end - std::min(end, in.pos()))
@@ -396,6 +405,7 @@ std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, Del
             if (delayed) delayed->present = true;
         }
         if (!in.seek(valueStart + n)) return "metadata '" + printable(name) + "' ends early";
+        if (item && name == item->first) item->second = {itemStart, valueStart + n};
     }
     return "";
 }
@@ -472,7 +482,7 @@ FileEntries readFileEntries(const std::string& path)
 // it lists them) and leaves `in` at the topology. Returns false when the transform is not a linear map
 // (OpenVDB reads those itself; they are refused before any topology is read).
 bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry& e, uint32_t& compression,
-                    DelayedLoadSizes* delayed)
+                    DelayedLoadSizes* delayed, GridEntry* spans = nullptr)
 {
     const uint64_t headerEnd = e.blockPos ? e.blockPos : e.endPos;
     in.setLimit(headerEnd);
@@ -481,7 +491,9 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     // A leaf record takes at least its value mask and code byte.
     const uint64_t maxLeaves = e.blockPos || e.streamed ? (e.endPos - std::max(e.blockPos, e.gridPos)) / 65 : 0;
     HalfFlag halfMeta = HalfFlag::Absent;
-    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed, &halfMeta);
+    const uint64_t metaPos = in.pos();
+    std::pair<const char*, std::array<uint64_t, 2>> delayedItem{openvdb::GridBase::META_FILE_DELAYED_LOAD, {0, 0}};
+    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed, &halfMeta, &delayedItem);
     if (!meta.empty()) damaged(path, "grid '" + e.name + "': " + meta);
     // The topology walk follows the type's "_HalfFloat"; OpenVDB follows the metadata. A file where they
     // differ would be read one way here and another there (and OpenVDB leaks the node it was filling
@@ -496,6 +508,12 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     const uint64_t mapBytes = linearMapBytes(mapType);
     if (!mapBytes) return false;
     if (!in.skip(mapBytes)) damaged(path, "grid '" + e.name + "': transform ends early");
+    if (spans) {
+        spans->metaPos = metaPos;
+        spans->delayedBegin = delayedItem.second[0];
+        spans->delayedEnd = delayedItem.second[1];
+        spans->headerEnd = in.pos();
+    }
     return true;
 }
 
@@ -546,7 +564,7 @@ VdbFileEntries checkVdbFileStructure(const std::string& path)
     for (GridEntry& e : f.grids) {
         uint32_t compression = 0;
         auto delayed = std::make_shared<DelayedLoadSizes>();
-        walkGridHeader(path, in, e, compression, delayed.get());
+        walkGridHeader(path, in, e, compression, delayed.get(), e.streamed ? nullptr : &e);
         const uint64_t bytes = delayed->codes.size() + delayed->sizes.size() * sizeof(int64_t);
         if (delayed->present && kept + bytes <= kKeptDelayedBytes) {
             kept += bytes;
@@ -554,6 +572,48 @@ VdbFileEntries checkVdbFileStructure(const std::string& path)
         }
     }
     return f;
+}
+
+openvdb::GridPtrVecPtr readGridHeaders(const std::string& path, const VdbFileEntries& entries, const openvdb::io::File& file)
+{
+    if (!entries.checkable || entries.grids.empty()) return nullptr;
+    for (const GridEntry& e : entries.grids) {
+        bool half = false;
+        if (e.headerEnd == 0 || !openvdb::GridBase::isRegistered(treeType(e.type, half))) return nullptr;
+    }
+    uint64_t end = 0;
+    for (const GridEntry& e : entries.grids) end = std::max(end, e.headerEnd);
+    BoundedReader in(path, end);
+    std::vector<std::pair<std::string, openvdb::GridBase::Ptr>> grids;
+    for (const GridEntry& e : entries.grids) {
+        bool half = false;
+        const std::string type = treeType(e.type, half);
+        // The map's bytes around the delayed-load item, its count one less; then the transform.
+        const bool table = e.delayedEnd > e.delayedBegin;
+        const uint64_t head = (table ? e.delayedBegin : e.headerEnd) - e.metaPos, tail = table ? e.headerEnd - e.delayedEnd : 0;
+        std::string bytes(head + tail, '\0');
+        if (!in.seek(e.metaPos) || !in.bytes(bytes.data(), head) ||
+            (tail && (!in.seek(e.delayedEnd) || !in.bytes(bytes.data() + head, tail))))
+            return nullptr;
+        if (table) {
+            uint32_t count = 0;
+            std::memcpy(&count, bytes.data(), sizeof count);
+            --count;
+            std::memcpy(bytes.data(), &count, sizeof count);
+        }
+        std::istringstream is(bytes);
+        openvdb::io::setVersion(is, file.libraryVersion(), file.fileVersion());
+        openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(type);
+        grid->setSaveFloatAsHalf(half);
+        grid->readMeta(is);
+        grid->readTransform(is);
+        grids.emplace_back(e.plain, std::move(grid));
+    }
+    // io::File lists its descriptors from a map by name (equal names in the file's order).
+    std::stable_sort(grids.begin(), grids.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    auto out = std::make_shared<openvdb::GridPtrVec>();
+    for (auto& g : grids) out->push_back(std::move(g.second));
+    return out;
 }
 
 namespace {

@@ -32,6 +32,11 @@ struct VdbGridEntry {
     // Its delayed-load metadata as checkVdbFileStructure decoded it (null: none, or not kept there),
     // which checkVdbGridData walks the grid's records with instead of decoding it again.
     std::shared_ptr<const DelayedLoadSizes> delayed;
+    // What listing the grids reads (readGridHeaders), as checkVdbFileStructure walked it: where the
+    // metadata map starts (its count), where its "file_delayed_load" item lies ([delayedBegin,
+    // delayedEnd), both 0 without one) and where the transform ends (0: not walked, a transform other
+    // than a linear map, or a file without grid offsets).
+    uint64_t metaPos = 0, delayedBegin = 0, delayedEnd = 0, headerEnd = 0;
 };
 
 // Where a file's grids lie, as checkVdbFileStructure found them.
@@ -49,6 +54,16 @@ struct VdbFileEntries {
 // than 222. Returns where the grids lie, for checkVdbGridData (a stream's trees are walked once here).
 // @throw InputError naming the file ("truncated or damaged OpenVDB file ...", or what is refused).
 VdbFileEntries checkVdbFileStructure(const std::string& path);
+
+// The grids' metadata and transforms, without their trees, as io::File::readAllGridMetadata lists
+// them (in the order of their names, the descriptors' map), read from the bytes the walk found, but
+// without decoding the delayed-load tables: OpenVDB decodes each (a byte and a size per leaf, about
+// 0.2 s on a 2 GB file) and then drops it, and checkVdbFileStructure has decoded it already. Null
+// where the walk did not find every grid's header (no grid offsets, a transform not a linear map):
+// the caller lists them with OpenVDB then. `file` is the open file (its format versions).
+// @throw what OpenVDB's metadata and transform reads throw.
+openvdb::GridPtrVecPtr readGridHeaders(const std::string& path, const VdbFileEntries& entries,
+                                       const openvdb::io::File& file);
 
 // The stored records of a grid's leaves (input_checks.cpp).
 struct LeafRecords;

@@ -1282,7 +1282,8 @@ std::unique_ptr<Volume> Volume::open(const std::string& path, const std::string&
     try {
         file.setCopyMaxBytes(0);  // read the file in place rather than through a private copy
         file.open(/*delayLoad=*/true);
-        metas = file.readAllGridMetadata();
+        metas = readGridHeaders(path, entries, file);  // without decoding the delayed-load tables again
+        if (!metas) metas = file.readAllGridMetadata();
     } catch (const std::bad_alloc&) {
         throw InputError(path + ": not a readable OpenVDB file (out of memory reading its metadata)");
     } catch (const std::exception& e) {
