@@ -75,6 +75,7 @@ public:
         mUsable = true;
         if (starts) {
             mAt = std::move(*starts);  // `at` is *starts: not read again
+            mHolding = Holding::Some;
             return;
         }
         mRecords.reserve(origins.size());
@@ -83,15 +84,20 @@ public:
     }
 
     // Holds the records of the leaves in `runs` ([first, end) of `origins`, those of the constructor) too.
-    // After the `last` call the record starts go: no other leaf is held.
+    // After the `last` call the record starts go: no other leaf can be held, and a later call throws
+    // std::logic_error rather than leave a leaf without its record.
     void hold(const std::vector<std::array<int32_t, 3>>& origins, const std::vector<std::array<size_t, 2>>& runs,
               bool last = false)
     {
-        if (!mUsable || mAt.empty()) return;  // every record is held
+        if (!mUsable || mHolding == Holding::All) return;
+        if (mHolding == Holding::Done) throw std::logic_error("a leaf record held after the last hold()");
         for (const auto& run : runs)
             for (size_t i = run[0]; i < run[1]; ++i) mRecords.push_back(record(origins[i], mAt[i], mAt[i + 1]));
         sortByKey();
-        if (last) std::vector<uint64_t>().swap(mAt);
+        if (last) {
+            std::vector<uint64_t>().swap(mAt);
+            mHolding = Holding::Done;
+        }
     }
     ~StoredLeaves()
     {
@@ -164,7 +170,9 @@ private:
     bool mHalf;
     bool mUsable = false;
     std::vector<Record> mRecords;
-    std::vector<uint64_t> mAt;  // where records start, while not all are held, until the last hold()
+    std::vector<uint64_t> mAt;  // where records start, while some are held, until the last hold()
+    // Every record held from the start; some, as hold() names them; or no more after the last hold().
+    enum class Holding { All, Some, Done } mHolding = Holding::All;
 };
 
 namespace {
