@@ -3,6 +3,7 @@
 // message a rank waits for is sent, failed or not, so an error anywhere ends every rank.
 #include "vdb_isosimp/mpi_run.h"
 
+#include "core/huge_pages.h"
 #include "pipeline/pipeline_internal.h"
 #include "pipeline/run_stats.h"
 #include "vdb_isosimp/errors.h"
@@ -156,7 +157,12 @@ public:
         MPI_Datatype block;
         check(MPI_Type_contiguous(3, MPI_INT32_T, &block), "type");
         check(MPI_Type_commit(&block), "type");
-        std::vector<std::array<int32_t, 3>> gathered(total);
+        // The whole list, 25 MB on the 2 GB gyroid, fresh on every rank: in huge pages, a page fault for
+        // every 2 MiB instead of every 4 KiB.
+        std::vector<std::array<int32_t, 3>> gathered;
+        gathered.reserve(total);
+        adviseHugePages(gathered.data(), total * sizeof(gathered[0]));
+        gathered.resize(total);
         const int code = MPI_Allgatherv(blocks.data(), int(blocks.size()), block, gathered.data(), counts.data(),
                                         displs.data(), block, MPI_COMM_WORLD);
         MPI_Type_free(&block);
