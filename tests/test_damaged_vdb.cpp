@@ -592,7 +592,6 @@ TEST(DamagedVdb, ASharedWalkLeavesNoReadLeafUnwalked)
     }
 }
 
-// Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.
 // The grids' headers read from the bytes the walk found (readGridHeaders, which skips the delayed-load
 // tables) are what OpenVDB's own listing gives: the same grids in the same order, each with the same
 // name, type, class, half-float flag, transform and metadata.
@@ -674,6 +673,7 @@ TEST(DamagedVdb, GridHeadersAreOpenVdbsWithoutTheDelayedLoadTables)
     EXPECT_FALSE(ourHeaders(d + "/frustum.vdb"));
 }
 
+// Writes the samples as the fuzz corpus (tests/fuzz/corpus/vdb_read) when VDB_ISOSIMP_CORPUS_DIR is set.
 TEST(DamagedVdb, WriteCorpus)
 {
     const char* dir = std::getenv("VDB_ISOSIMP_CORPUS_DIR");

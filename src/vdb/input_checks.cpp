@@ -365,9 +365,9 @@ enum class HalfFlag { Absent, No, Yes, Other };
 // A metadata map (file or grid): uint32 count, then per item name, type name, uint32 size and the
 // value. Every size must fit before `end`, fixed-size types must state their size, and the
 // delayed-load table (read by OpenVDB with no bound of its own) must be consistent.
-// `item`, where given: the span of the item named `item->first` (left 0 0 without one).
+// `delayedSpan`, where given: where the item named "file_delayed_load" lies (left as it is without one).
 std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, DelayedLoadSizes* delayed,
-                        HalfFlag* half = nullptr, std::pair<const char*, std::array<uint64_t, 2>>* item = nullptr)
+                        HalfFlag* half = nullptr, std::array<uint64_t, 2>* delayedSpan = nullptr)
 {
     uint32_t count = 0;
     if (!in.value(count) || count > in.left() / 12) return "metadata count ends early or is invalid";
@@ -405,7 +405,7 @@ std::string walkMetaMap(BoundedReader& in, uint64_t end, uint64_t maxLeaves, Del
             if (delayed) delayed->present = true;
         }
         if (!in.seek(valueStart + n)) return "metadata '" + printable(name) + "' ends early";
-        if (item && name == item->first) item->second = {itemStart, valueStart + n};
+        if (delayedSpan && name == openvdb::GridBase::META_FILE_DELAYED_LOAD) *delayedSpan = {itemStart, valueStart + n};
     }
     return "";
 }
@@ -492,8 +492,8 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     const uint64_t maxLeaves = e.blockPos || e.streamed ? (e.endPos - std::max(e.blockPos, e.gridPos)) / 65 : 0;
     HalfFlag halfMeta = HalfFlag::Absent;
     const uint64_t metaPos = in.pos();
-    std::pair<const char*, std::array<uint64_t, 2>> delayedItem{openvdb::GridBase::META_FILE_DELAYED_LOAD, {0, 0}};
-    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed, &halfMeta, &delayedItem);
+    std::array<uint64_t, 2> delayedSpan{0, 0};
+    const std::string meta = walkMetaMap(in, headerEnd, maxLeaves, delayed, &halfMeta, &delayedSpan);
     if (!meta.empty()) damaged(path, "grid '" + e.name + "': " + meta);
     // The topology walk follows the type's "_HalfFloat"; OpenVDB follows the metadata. A file where they
     // differ would be read one way here and another there (and OpenVDB leaks the node it was filling
@@ -510,8 +510,8 @@ bool walkGridHeader(const std::string& path, BoundedReader& in, const GridEntry&
     if (!in.skip(mapBytes)) damaged(path, "grid '" + e.name + "': transform ends early");
     if (spans) {
         spans->metaPos = metaPos;
-        spans->delayedBegin = delayedItem.second[0];
-        spans->delayedEnd = delayedItem.second[1];
+        spans->delayedBegin = delayedSpan[0];
+        spans->delayedEnd = delayedSpan[1];
         spans->headerEnd = in.pos();
     }
     return true;
@@ -577,12 +577,12 @@ VdbFileEntries checkVdbFileStructure(const std::string& path)
 openvdb::GridPtrVecPtr readGridHeaders(const std::string& path, const VdbFileEntries& entries, const openvdb::io::File& file)
 {
     if (!entries.checkable || entries.grids.empty()) return nullptr;
+    uint64_t end = 0;
     for (const GridEntry& e : entries.grids) {
         bool half = false;
         if (e.headerEnd == 0 || !openvdb::GridBase::isRegistered(treeType(e.type, half))) return nullptr;
+        end = std::max(end, e.headerEnd);
     }
-    uint64_t end = 0;
-    for (const GridEntry& e : entries.grids) end = std::max(end, e.headerEnd);
     BoundedReader in(path, end);
     std::vector<std::pair<std::string, openvdb::GridBase::Ptr>> grids;
     for (const GridEntry& e : entries.grids) {
